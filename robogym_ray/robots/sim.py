@@ -7,6 +7,7 @@ per Ray actor is the norm, but tests and benchmarks run many side by side), whic
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Sequence
 
 import numpy as np
@@ -63,7 +64,12 @@ class PyBulletWorld:
         return self._add(name, col, -1, 0.0, (0.0, 0.0, 0.0), 0.0)
 
     def load_urdf(
-        self, name: str, path: str, position: Vec3 = (0, 0, 0), fixed_base: bool = True, flags: int = 0
+        self,
+        name: str,
+        path: str,
+        position: Vec3 = (0, 0, 0),
+        fixed_base: bool = True,
+        flags: int = 0,
     ) -> int:
         uid = self.client.loadURDF(
             path, basePosition=list(position), useFixedBase=fixed_base, flags=flags
@@ -102,7 +108,5 @@ class PyBulletWorld:
         return np.asarray(pos, dtype=np.float64), float(yaw)
 
     def close(self) -> None:
-        try:
+        with contextlib.suppress(p.error):  # already disconnected
             self.client.disconnect()
-        except p.error:  # already disconnected
-            pass

@@ -23,7 +23,9 @@ class StateBuffer:
 
     def update(self, **groups: np.ndarray | float) -> None:
         """Replace the given groups (others keep their last value)."""
-        copies = {k: np.atleast_1d(np.asarray(v, dtype=np.float64)).copy() for k, v in groups.items()}
+        copies = {
+            k: np.atleast_1d(np.asarray(v, dtype=np.float64)).copy() for k, v in groups.items()
+        }
         with self._lock:
             self._groups.update(copies)
             self._version += 1

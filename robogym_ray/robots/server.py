@@ -1,0 +1,284 @@
+"""The robot server: robo-gym's ``RobotServer`` gRPC service in front of a simulated robot.
+
+``RobotServerCore`` is the plain-Python logic (no gRPC) so it can be benchmarked and tested
+in-process; ``RobotServerServicer`` adapts it to the wire; ``start_robot_server`` builds both.
+
+Error convention (robo-gym's, see docs/protocol.md): a call with bad input (wrong length, NaN/inf,
+out of range, unknown keys) is answered normally with ``success=false`` - exactly what robo-gym's
+ROS servers do, so robo-gym's own client raises its usual errors - and the reason travels in the
+trailing metadata key ``robogym-error`` (State replies also carry it as
+``string_params["error"]``). Nothing in the simulation changes and the server keeps serving.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections.abc import Mapping, Sequence
+from concurrent import futures
+from dataclasses import dataclass
+
+import grpc
+import numpy as np
+
+from robogym_ray.errors import InvalidActionError, RoboGymRayError
+from robogym_ray.protocol import robot_server_pb2 as pb
+from robogym_ray.protocol import robot_server_pb2_grpc as pb_grpc
+from robogym_ray.robots.base import SimRobot, StateRequest, StateSnapshot
+from robogym_ray.robots.command_handler import CommandHandler
+from robogym_ray.robots.registry import make_robot
+from robogym_ray.robots.state_buffer import StateBuffer
+
+log = logging.getLogger(__name__)
+
+ERROR_METADATA_KEY = "robogym-error"
+TOKEN_METADATA_KEY = "robogym-token"
+
+
+class RobotServerCore:
+    """Serialises access to one robot, runs its command handler and keeps its state buffer.
+
+    Simulated time (default): each SendAction runs one action cycle of actuation ticks and
+    physics *now*, so simulation runs as fast as the CPU allows. Real-time pacing
+    (``real_time=True``, for real robots' emulation): a background loop ticks the handler at
+    the actuation rate against the wall clock, sensors refresh at their own rates, and
+    SendAction returns after one action cycle, as robo-gym's ROS servers do.
+    """
+
+    def __init__(self, robot: SimRobot, *, real_time: bool = False) -> None:
+        self.robot = robot
+        self.real_time = real_time
+        self.handler = CommandHandler(robot.handler_config, robot.publish)
+        self.buffer = StateBuffer()
+        self.sim_time = 0.0
+        self.calls: dict[str, int] = {"get": 0, "set": 0, "action": 0, "rejected": 0}
+        self._lock = threading.RLock()  # PyBullet is not thread-safe; gRPC calls are concurrent
+        self._stop = threading.Event()
+        self._last_refresh: dict[str, float] = {}
+        self.buffer.update(**robot.read_sensors())
+        self._loop: threading.Thread | None = None
+        if real_time:
+            self._loop = threading.Thread(target=self._real_time_loop, daemon=True)
+            self._loop.start()
+
+    # -- RPC semantics ----------------------------------------------------------------------
+    def get_state(self) -> StateSnapshot:
+        """The latest consistent snapshot; a pure read that never waits on the simulation."""
+        self.calls["get"] += 1
+        _, groups = self.buffer.snapshot()
+        return self.robot.compose(groups)
+
+    def set_state(self, request: StateRequest) -> None:
+        """Reset robot and scene; returns when the new state is in place (and in the buffer)."""
+        with self._lock:
+            self.robot.set_state(request)  # validates first: raises before changing anything
+            self.handler.clear()
+            self.buffer.update(**self.robot.read_sensors())
+        self.calls["set"] += 1
+
+    def send_action(self, action: Sequence[float] | np.ndarray) -> bool:
+        """Apply one action for one action cycle; returns whether the handler accepted it."""
+        command = self.robot.validate_action(_as_vector(action))
+        self.calls["action"] += 1
+        if self.real_time:
+            accepted = self.handler.submit(command)
+            time.sleep(self.robot.handler_config.action_cycle)
+            return accepted
+        with self._lock:
+            accepted = self.handler.submit(command)
+            cfg = self.robot.handler_config
+            for _ in range(cfg.ticks_per_action):
+                self._tick(cfg.actuation_cycle)
+            self.buffer.update(**self.robot.read_sensors())
+        return accepted
+
+    def send_action_get_state(self, action: Sequence[float] | np.ndarray) -> StateSnapshot:
+        self.send_action(action)
+        return self.get_state()
+
+    def close(self) -> None:
+        self._stop.set()
+        if self._loop is not None:
+            self._loop.join(timeout=2.0)
+        with self._lock:
+            self.robot.close()
+
+    # -- internals --------------------------------------------------------------------------
+    def _tick(self, dt: float) -> None:
+        self.handler.tick()
+        self.robot.advance(dt)
+        self.sim_time += dt
+
+    def _real_time_loop(self) -> None:
+        dt = self.robot.handler_config.actuation_cycle
+        periods = dict(self.robot.sensor_periods)
+        next_tick = time.monotonic()
+        while not self._stop.is_set():
+            with self._lock:
+                self._tick(dt)
+                due = [g for g, period in periods.items() if self._due(g, period)]
+                fresh = self.robot.read_sensors()
+                # Slow sensors keep their last value until their period has passed.
+                self.buffer.update(
+                    **{g: v for g, v in fresh.items() if g not in periods or g in due}
+                )
+            next_tick += dt
+            delay = next_tick - time.monotonic()
+            if delay > 0:
+                self._stop.wait(delay)
+            else:  # fell behind (slow machine): resynchronise rather than burst to catch up
+                next_tick = time.monotonic()
+
+    def _due(self, group: str, period: float) -> bool:
+        last = self._last_refresh.get(group, -np.inf)
+        if self.sim_time - last >= period - 1e-9:
+            self._last_refresh[group] = self.sim_time
+            return True
+        return False
+
+
+def _as_vector(values: Sequence[float] | np.ndarray) -> np.ndarray:
+    try:
+        vec = np.asarray(values, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise InvalidActionError(f"action is not a list of numbers: {exc}") from None
+    if vec.ndim != 1:
+        raise InvalidActionError(f"action must be a flat list, got shape {vec.shape}")
+    return vec
+
+
+# -- wire adapters --------------------------------------------------------------------------
+def snapshot_to_msg(snapshot: StateSnapshot) -> pb.State:
+    msg = pb.State(success=True)
+    msg.state.extend(np.asarray(snapshot.state, dtype=np.float32).tolist())
+    if snapshot.state_dict:
+        msg.state_dict.update({k: float(v) for k, v in snapshot.state_dict.items()})
+    return msg
+
+
+def msg_to_request(msg: pb.State) -> StateRequest:
+    return StateRequest(
+        state=np.asarray(msg.state, dtype=np.float64),
+        state_dict=dict(msg.state_dict),
+        float_params=dict(msg.float_params),
+        string_params=dict(msg.string_params),
+    )
+
+
+class RobotServerServicer(pb_grpc.RobotServerServicer):
+    """robo-gym's RobotServer service over a ``RobotServerCore``."""
+
+    def __init__(self, core: RobotServerCore) -> None:
+        self.core = core
+
+    def GetState(self, request: pb.Empty, context: grpc.ServicerContext) -> pb.State:  # noqa: N802
+        try:
+            return snapshot_to_msg(self.core.get_state())
+        except Exception as exc:  # noqa: BLE001 - robo-gym convention: never a gRPC error
+            return self._fail_state(context, "GetState", exc)
+
+    def SetState(self, request: pb.State, context: grpc.ServicerContext) -> pb.Success:  # noqa: N802
+        try:
+            self.core.set_state(msg_to_request(request))
+            return pb.Success(success=True)
+        except Exception as exc:  # noqa: BLE001
+            self._report(context, "SetState", exc)
+            return pb.Success(success=False)
+
+    def SendAction(self, request: pb.Action, context: grpc.ServicerContext) -> pb.Success:  # noqa: N802
+        try:
+            return pb.Success(success=self.core.send_action(request.action))
+        except Exception as exc:  # noqa: BLE001
+            self._report(context, "SendAction", exc)
+            return pb.Success(success=False)
+
+    def SendActionGetState(self, request: pb.Action, context: grpc.ServicerContext) -> pb.State:  # noqa: N802
+        try:
+            return snapshot_to_msg(self.core.send_action_get_state(request.action))
+        except Exception as exc:  # noqa: BLE001
+            return self._fail_state(context, "SendActionGetState", exc)
+
+    def _fail_state(self, context: grpc.ServicerContext, rpc: str, exc: Exception) -> pb.State:
+        message = self._report(context, rpc, exc)
+        return pb.State(success=False, string_params={"error": message})
+
+    def _report(self, context: grpc.ServicerContext, rpc: str, exc: Exception) -> str:
+        self.core.calls["rejected"] += 1
+        message = f"{rpc}: {type(exc).__name__}: {exc}"
+        if isinstance(exc, RoboGymRayError):
+            log.warning("rejected %s", message)
+        else:  # a bug of ours, not bad input: keep the traceback
+            log.exception("failed %s", rpc)
+        # Metadata values must be printable ASCII.
+        safe = message.encode("ascii", "replace").decode("ascii").replace("\n", " ")[:2000]
+        context.set_trailing_metadata(((ERROR_METADATA_KEY, safe),))
+        return message
+
+
+class _TokenInterceptor(grpc.ServerInterceptor):
+    """Refuses calls without the shared token (only used when listening beyond loopback)."""
+
+    def __init__(self, token: str) -> None:
+        self._token = token
+
+        def deny(request: object, context: grpc.ServicerContext) -> None:
+            context.abort(grpc.StatusCode.UNAUTHENTICATED, f"missing or wrong {TOKEN_METADATA_KEY}")
+
+        self._deny = grpc.unary_unary_rpc_method_handler(deny)
+
+    def intercept_service(self, continuation, handler_call_details):  # type: ignore[no-untyped-def]
+        metadata = dict(handler_call_details.invocation_metadata or ())
+        if metadata.get(TOKEN_METADATA_KEY) == self._token:
+            return continuation(handler_call_details)
+        return self._deny
+
+
+@dataclass
+class RobotServerHandle:
+    """A running robot server: its address, its core, and how to stop it."""
+
+    server: grpc.Server
+    core: RobotServerCore
+    host: str
+    port: int
+
+    @property
+    def address(self) -> str:
+        host = f"[{self.host}]" if ":" in self.host else self.host
+        return f"{host}:{self.port}"
+
+    def stop(self, grace: float = 0.5) -> None:
+        self.server.stop(grace).wait()
+        self.core.close()
+
+    def wait(self) -> None:
+        self.server.wait_for_termination()
+
+
+def start_robot_server(
+    robot: str,
+    *,
+    scene: str | None = None,
+    seed: int | None = None,
+    options: Mapping[str, str] | None = None,
+    host: str = "127.0.0.1",
+    port: int = 0,
+    real_time: bool = False,
+    token: str | None = None,
+    max_workers: int = 10,
+) -> RobotServerHandle:
+    """Build the robot and serve it on ``host:port`` (port 0 = a free port); returns at once."""
+    sim_robot = make_robot(robot, scene=scene, seed=seed, options=options)
+    core = RobotServerCore(sim_robot, real_time=real_time)
+    interceptors = [_TokenInterceptor(token)] if token else []
+    server = grpc.server(
+        futures.ThreadPoolExecutor(max_workers=max_workers), interceptors=interceptors
+    )
+    pb_grpc.add_RobotServerServicer_to_server(RobotServerServicer(core), server)
+    bound = server.add_insecure_port(f"[{host}]:{port}" if ":" in host else f"{host}:{port}")
+    if bound == 0:
+        core.close()
+        raise OSError(f"could not bind a robot server to {host}:{port}")
+    server.start()
+    return RobotServerHandle(server=server, core=core, host=host, port=bound)
