@@ -1,0 +1,55 @@
+"""``robogym-ray``: one command-line entry point with a sub-command per job.
+
+Each sub-command lives in its own module exposing ``add_arguments(parser)`` and
+``run(args) -> int``; the table below is the only place that lists them, and modules are imported
+only when their command runs (``--help`` stays fast and does not import Ray or torch).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import logging
+import sys
+from collections.abc import Sequence
+
+from robogym_ray.errors import RoboGymRayError
+
+COMMANDS: dict[str, tuple[str, str]] = {
+    "serve": (
+        "robogym_ray.robots.serve",
+        "Start a standalone robot server (gRPC, robo-gym protocol).",
+    ),
+}
+
+
+def build_parser(argv: Sequence[str]) -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="robogym-ray",
+        description="Distributed deep RL on real and simulated robots (Ray + PyBullet).",
+    )
+    parser.add_argument("--log-level", default="WARNING", help="Python logging level.")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    # Only the chosen command's module is imported; the others get a stub for the listing.
+    chosen = next((a for a in argv if a in COMMANDS), None)
+    for name, (module, summary) in COMMANDS.items():
+        cmd = sub.add_parser(name, help=summary, description=summary)
+        if name == chosen:
+            importlib.import_module(module).add_arguments(cmd)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    args = build_parser(argv).parse_args(argv)
+    logging.basicConfig(level=args.log_level.upper(), format="%(asctime)s %(name)s %(message)s")
+    module = importlib.import_module(COMMANDS[args.command][0])
+    try:
+        return int(module.run(args) or 0)
+    except RoboGymRayError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,122 @@
+"""Frozen dataclass configs and their command-line form.
+
+Field docstrings are the documentation: ``add_config_args`` turns each field of a config class
+into a ``--flag`` whose help is the field's docstring (CleanRL style), so ``--help`` and the code
+never disagree. Components take their own config; no dict sub-configs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import dataclasses
+import inspect
+import json
+import textwrap
+import typing
+from collections.abc import Mapping
+from functools import cache
+from pathlib import Path
+from typing import Any, TypeVar
+
+from robogym_ray.errors import ConfigError
+
+T = TypeVar("T")
+
+
+@cache
+def field_docs(cls: type) -> dict[str, str]:
+    """{field name: docstring} read from the class source (the string after each field)."""
+    docs: dict[str, str] = {}
+    for klass in reversed(cls.__mro__):
+        if not dataclasses.is_dataclass(klass):
+            continue
+        try:
+            tree = ast.parse(textwrap.dedent(inspect.getsource(klass)))
+        except (OSError, TypeError):  # no source (e.g. frozen app): help stays empty
+            continue
+        body = tree.body[0].body  # type: ignore[attr-defined]
+        for node, nxt in zip(body, body[1:], strict=False):
+            if (
+                isinstance(node, ast.AnnAssign)
+                and isinstance(node.target, ast.Name)
+                and isinstance(nxt, ast.Expr)
+                and isinstance(nxt.value, ast.Constant)
+                and isinstance(nxt.value.value, str)
+            ):
+                docs[node.target.id] = " ".join(nxt.value.value.split())
+    return docs
+
+
+def _scalar_type(tp: Any) -> Any:
+    """The element type of ``X | None`` / ``tuple[X, ...]``, or ``tp`` itself."""
+    args = [a for a in typing.get_args(tp) if a is not type(None)]
+    return args[0] if args else tp
+
+
+def add_config_args(parser: argparse.ArgumentParser, cls: type, prefix: str = "") -> None:
+    """Add one ``--field-name`` option per field of the dataclass ``cls``."""
+    hints = typing.get_type_hints(cls)
+    docs = field_docs(cls)
+    for f in dataclasses.fields(cls):
+        if not f.init:
+            continue
+        tp = hints[f.name]
+        flag = "--" + prefix + f.name.replace("_", "-")
+        default = f.default if f.default is not dataclasses.MISSING else f.default_factory()  # type: ignore[misc]
+        help_text = f"{docs.get(f.name, '')} (default: {default!r})"
+        origin = typing.get_origin(tp)
+        if tp is bool:
+            parser.add_argument(
+                flag,
+                dest=f.name,
+                action=argparse.BooleanOptionalAction,
+                default=default,
+                help=help_text,
+            )
+        elif origin is tuple or (
+            origin is not None and typing.get_origin(_scalar_type(tp)) is tuple
+        ):
+            inner = _scalar_type(_scalar_type(tp))
+            parser.add_argument(
+                flag, dest=f.name, type=inner, nargs="+", default=default, help=help_text
+            )
+        else:
+            parser.add_argument(
+                flag, dest=f.name, type=_scalar_type(tp), default=default, help=help_text
+            )
+
+
+def config_from_args(cls: type[T], args: argparse.Namespace) -> T:
+    """Build ``cls`` from the parsed options that ``add_config_args`` added."""
+    values = {}
+    for f in dataclasses.fields(cls):  # type: ignore[arg-type]
+        if f.init and hasattr(args, f.name):
+            value = getattr(args, f.name)
+            values[f.name] = tuple(value) if isinstance(value, list) else value
+    return cls(**values)
+
+
+def load_config_file(cls: type[T], path: str | Path, overrides: Mapping[str, Any] = ()) -> T:  # type: ignore[assignment]
+    """Read a JSON config file into ``cls``; unknown keys are an error that names them."""
+    try:
+        data = json.loads(Path(path).read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        raise ConfigError(f"cannot read config file {path}: {exc}") from None
+    if not isinstance(data, dict):
+        raise ConfigError(f"config file {path} must hold a JSON object, got {type(data).__name__}")
+    return merge_config(cls, {**data, **dict(overrides)}, source=str(path))
+
+
+def merge_config(cls: type[T], values: Mapping[str, Any], source: str = "config") -> T:
+    """``cls(**values)`` with clear errors for unknown fields and bad values."""
+    known = {f.name for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
+    unknown = sorted(set(values) - known)
+    if unknown:
+        raise ConfigError(
+            f"{source}: unknown {cls.__name__} field(s) {unknown}; known: {sorted(known)}"
+        )
+    try:
+        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in values.items()})
+    except (TypeError, ValueError) as exc:
+        raise ConfigError(f"{source}: invalid {cls.__name__}: {exc}") from None

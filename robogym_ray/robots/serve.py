@@ -1,0 +1,95 @@
+"""``robogym-ray serve``: a standalone robot server in the foreground."""
+
+from __future__ import annotations
+
+import argparse
+import ipaddress
+import logging
+import os
+import signal
+import sys
+import threading
+from dataclasses import dataclass
+
+from robogym_ray.config import add_config_args, config_from_args
+from robogym_ray.errors import ConfigError
+from robogym_ray.robots.registry import ROBOTS
+from robogym_ray.robots.server import start_robot_server
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class ServeConfig:
+    """What ``robogym-ray serve`` starts."""
+
+    robot: str = "mir100"
+    """Robot model: mir100, ur3, ur3e, ur5, ur5e, ur10, ur10e or ur16e."""
+    scene: str | None = None
+    """Scene name (mir100: lab_6x8, empty; UR: empty, tabletop); default: the robot's own."""
+    host: str = "127.0.0.1"
+    """Interface to listen on. Loopback by default; any other interface must be asked for."""
+    port: int = 0
+    """TCP port; 0 picks a free one (printed on stdout)."""
+    real_time: bool = False
+    """Pace the simulation against the wall clock (emulating a real robot's driver)."""
+    seed: int | None = None
+    """Seed of the robot's own randomness (sensor noise, object trajectories)."""
+    token: str | None = None
+    """Shared token clients must send as gRPC metadata 'robogym-token' (or ROBOGYM_RAY_TOKEN)."""
+    option: tuple[str, ...] = ()
+    """Robot options as robo-gym launch arguments, e.g. rs_mode=1object action_cycle_rate=10."""
+
+
+def parse_options(pairs: tuple[str, ...] | list[str]) -> dict[str, str]:
+    """``["k=v", "k2:=v2"]`` -> dict; robo-gym's ``:=`` is accepted as well as ``=``."""
+    options: dict[str, str] = {}
+    for pair in pairs:
+        key, sep, value = pair.replace(":=", "=", 1).partition("=")
+        if not sep or not key:
+            raise ConfigError(f"robot option {pair!r} is not of the form key=value")
+        options[key] = value
+    return options
+
+
+def is_loopback(host: str) -> bool:
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host.strip("[]")).is_loopback
+    except ValueError:
+        return False
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    add_config_args(parser, ServeConfig)
+
+
+def run(args: argparse.Namespace) -> int:
+    cfg = config_from_args(ServeConfig, args)
+    if cfg.robot not in ROBOTS:
+        print(f"error: unknown robot {cfg.robot!r}; choose from {sorted(ROBOTS)}", file=sys.stderr)
+        return 2
+    token = cfg.token or os.environ.get("ROBOGYM_RAY_TOKEN") or None
+    if not is_loopback(cfg.host) and token is None:
+        log.warning(
+            "listening on %s without a token: anyone who reaches it can move the robot", cfg.host
+        )
+    handle = start_robot_server(
+        cfg.robot,
+        scene=cfg.scene,
+        seed=cfg.seed,
+        options=parse_options(cfg.option),
+        host=cfg.host,
+        port=cfg.port,
+        real_time=cfg.real_time,
+        token=token,
+    )
+    stop = threading.Event()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: stop.set())
+    print(f"listening on {handle.address}", flush=True)
+    stop.wait()
+    handle.stop()
+    print("stopped", flush=True)
+    return 0
