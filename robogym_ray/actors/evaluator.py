@@ -1,0 +1,75 @@
+"""Evaluator (plain class): the greedy policy on its own env, the paper's supervision instance.
+
+It keeps the final status of the last 100 episodes and reports success / collision / timeout
+rates over them, plus returns.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from collections.abc import Mapping
+
+import numpy as np
+
+from robogym_ray.actors.rollout import EnvFactory, box_dims
+from robogym_ray.learner.actor import PolicyActor, to_env_action
+from robogym_ray.learner.config import D4PGConfig
+
+TIMEOUT = "max_steps_exceeded"
+
+
+def status_rates(statuses: list[str]) -> dict[str, float]:
+    """success / collision / timeout rates (0..1) over ``statuses``."""
+    n = max(1, len(statuses))
+    return {
+        "success_rate": sum(s == "success" for s in statuses) / n,
+        "collision_rate": sum(s == "collision" for s in statuses) / n,
+        "timeout_rate": sum(s in (TIMEOUT, "truncated") for s in statuses) / n,
+    }
+
+
+class Evaluator:
+    """Runs deterministic (noise-free) episodes with the latest weights."""
+
+    def __init__(
+        self, make_env: EnvFactory, d4pg: D4PGConfig, *, seed: int = 10_000, window: int = 100
+    ) -> None:
+        self.env = make_env()
+        obs_dim, act_dim = box_dims(self.env)
+        self.low = self.env.action_space.low.astype(np.float64)
+        self.high = self.env.action_space.high.astype(np.float64)
+        self.actor = PolicyActor(obs_dim, act_dim, d4pg.policy_hidden, 0.0, d4pg.layer_norm)
+        self.seed = seed
+        self.episodes = 0
+        self.statuses: deque[str] = deque(maxlen=window)
+        self.returns: deque[float] = deque(maxlen=window)
+
+    def evaluate(self, weights: Mapping[str, np.ndarray], version: int, episodes: int = 1) -> dict:
+        """Run ``episodes`` greedy episodes; returns rates over the window and this call's mean."""
+        self.actor.set_weights(dict(weights))
+        rets = []
+        for _ in range(episodes):
+            obs, _ = self.env.reset(seed=self.seed + self.episodes)
+            self.episodes += 1
+            ret, done, info = 0.0, False, {}
+            while not done:
+                action = self.actor.act(np.asarray(obs, dtype=np.float32), explore=False)
+                obs, reward, terminated, truncated, info = self.env.step(
+                    to_env_action(action, self.low, self.high)
+                )
+                ret += float(reward)
+                done = terminated or truncated
+            status = str(info.get("final_status", "truncated" if truncated else "terminated"))
+            self.statuses.append(status)
+            self.returns.append(ret)
+            rets.append(ret)
+        return {
+            "eval_return": float(np.mean(rets)),
+            "eval_return_window": float(np.mean(self.returns)),
+            "eval_episodes": float(self.episodes),
+            "weights_version": float(version),
+            **{f"eval_{k}": v for k, v in status_rates(list(self.statuses)).items()},
+        }
+
+    def close(self) -> None:
+        self.env.close()

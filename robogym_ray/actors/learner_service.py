@@ -1,0 +1,115 @@
+"""Learner service (plain class): D4PG learner + replay + insert ratio + checkpoints.
+
+The Ray program wraps it in an actor with automatic restarts; a restarted actor runs
+``__init__`` again, which restores the latest checkpoint, so training resumes where it was.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+
+from robogym_ray.learner.config import D4PGConfig
+from robogym_ray.learner.learner import D4PGLearner
+
+log = logging.getLogger(__name__)
+
+CHECKPOINT_NAME = "learner.pt"
+
+
+class LearnerService:
+    """Inserts actor batches and runs learner steps at ``samples_per_insert``."""
+
+    def __init__(
+        self,
+        d4pg: D4PGConfig,
+        obs_dim: int,
+        act_dim: int,
+        *,
+        seed: int = 0,
+        checkpoint_dir: str | None = None,
+        checkpoint_every: int = 1000,
+        max_steps_per_call: int = 1000,
+    ) -> None:
+        """Args:
+        checkpoint_dir: where ``learner.pt`` lives; restored from on start when present.
+        checkpoint_every: learner steps between checkpoints (0 disables).
+        max_steps_per_call: cap on learner steps run inside one ``add`` (keeps the actor
+            responsive; the debt carries over to the next call).
+        """
+        self.learner = D4PGLearner(d4pg, obs_dim, act_dim, seed=seed)
+        self.config = d4pg
+        self.checkpoint_dir = Path(checkpoint_dir) if checkpoint_dir else None
+        self.checkpoint_every = checkpoint_every
+        self.max_steps_per_call = max_steps_per_call
+        self.inserted = 0
+        self._debt = 0.0
+        self._last_checkpoint_step = 0
+        self.restored_from_step = -1
+        self._step_time = 0.0
+        if self.checkpoint_dir is not None and (self.checkpoint_dir / CHECKPOINT_NAME).exists():
+            self.learner.restore(self.checkpoint_dir / CHECKPOINT_NAME)
+            self.restored_from_step = self._last_checkpoint_step = self.learner.num_steps
+            log.warning("learner restored from checkpoint at step %d", self.restored_from_step)
+
+    @property
+    def version(self) -> int:
+        """Weights version = learner steps taken (monotonic, survives restarts)."""
+        return self.learner.num_steps
+
+    def add(self, batch: dict[str, np.ndarray], priorities: np.ndarray | None = None) -> dict:
+        """Insert transitions, then run the learner steps they pay for; returns metrics."""
+        n = len(batch["reward"])
+        self.learner.add(batch, priorities)
+        self.inserted += n
+        if self.learner.can_step():
+            self._debt += n * self.config.samples_per_insert / self.config.batch_size
+        return self.train(min(int(self._debt), self.max_steps_per_call))
+
+    def train(self, steps: int) -> dict:
+        metrics: dict[str, float] = {}
+        start = time.perf_counter()
+        for _ in range(steps):
+            for key, value in self.learner.step().items():
+                metrics[key] = metrics.get(key, 0.0) + value
+        self._debt -= steps
+        self._step_time += time.perf_counter() - start
+        out = {k: v / steps for k, v in metrics.items()} if steps else {}
+        out.update(
+            learner_steps=float(self.version),
+            steps_this_call=float(steps),
+            replay_size=float(len(self.learner.replay)),
+            inserted=float(self.inserted),
+            learner_time_s=self._step_time,
+        )
+        if (
+            self.checkpoint_every
+            and self.version - self._last_checkpoint_step >= self.checkpoint_every
+        ):
+            self.checkpoint()
+        return out
+
+    def initial_priorities(self, batch: dict[str, np.ndarray]) -> np.ndarray:
+        return self.learner.compute_initial_priorities(batch)
+
+    def get_weights(self) -> tuple[dict[str, np.ndarray], int]:
+        return self.learner.get_weights(), self.version
+
+    def checkpoint(self) -> str | None:
+        """Write the checkpoint atomically (a crash mid-write never leaves a broken file)."""
+        if self.checkpoint_dir is None:
+            return None
+        self.checkpoint_dir.mkdir(parents=True, exist_ok=True)
+        tmp = self.checkpoint_dir / f".{CHECKPOINT_NAME}.{os.getpid()}.tmp"
+        self.learner.save(tmp)
+        final = self.checkpoint_dir / CHECKPOINT_NAME
+        os.replace(tmp, final)
+        self._last_checkpoint_step = self.version
+        return str(final)
+
+    def ping(self) -> int:
+        return os.getpid()

@@ -1,0 +1,163 @@
+"""Rollout worker (plain class): env + CPU policy copy + exploration + n-step accumulator.
+
+The Ray program wraps it in an actor; tests drive it directly. One ``collect`` call runs a fixed
+number of env steps and returns the finished n-step transitions, the episodes that ended, and
+counters. When the robot server fails mid-episode (the env ends the episode with
+``final_status == "server_restarted"``), the unfinished n-step window is dropped, so no
+transition in replay ever spans a crash.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from robogym_ray.errors import ConfigError
+from robogym_ray.learner.actor import PolicyActor, to_env_action
+from robogym_ray.learner.config import D4PGConfig
+from robogym_ray.learner.nstep import NStepAccumulator, Transition, stack_transitions
+
+SERVER_RESTARTED = "server_restarted"
+
+EnvFactory = Callable[[], gym.Env]
+
+
+@dataclass(frozen=True)
+class Episode:
+    """Summary of one finished episode."""
+
+    ret: float
+    length: int
+    final_status: str
+    worker: int
+
+
+@dataclass
+class RolloutResult:
+    """What one ``collect`` call sends back to the driver."""
+
+    batch: dict[str, np.ndarray] | None
+    """Stacked n-step transitions (None when none completed)."""
+    episodes: list[Episode] = field(default_factory=list)
+    steps: int = 0
+    dropped: int = 0
+    """Steps whose n-step window was dropped because the server failed mid-episode."""
+    weights_version: int = -1
+    wall_s: float = 0.0
+    worker: int = 0
+
+
+def box_dims(env: gym.Env) -> tuple[int, int]:
+    """(obs_dim, act_dim) of an env with flat Box spaces; ConfigError otherwise."""
+    obs, act = env.observation_space, env.action_space
+    if not (isinstance(obs, gym.spaces.Box) and isinstance(act, gym.spaces.Box)):
+        raise ConfigError(f"D4PG needs Box observation and action spaces, got {obs} and {act}")
+    if len(obs.shape) != 1 or len(act.shape) != 1:
+        raise ConfigError(f"D4PG needs flat spaces, got shapes {obs.shape} and {act.shape}")
+    return int(obs.shape[0]), int(act.shape[0])
+
+
+class RolloutWorker:
+    """Collects n-step experience with a noisy copy of the policy."""
+
+    def __init__(
+        self,
+        make_env: EnvFactory,
+        d4pg: D4PGConfig,
+        *,
+        index: int = 0,
+        sigma: float | None = None,
+        seed: int = 0,
+        random_steps: int = 0,
+    ) -> None:
+        """Args:
+        make_env: builds this worker's env (Sim via a server provider, or Real by address).
+        d4pg: network shapes, n-step length and discount.
+        index: worker number (for logs and episode records).
+        sigma: this worker's exploration noise (Ape-X gives each actor its own); None = d4pg's.
+        seed: env and noise seed.
+        random_steps: first steps taken with uniform random actions (before any weights).
+        """
+        self.env = make_env()
+        self.index = index
+        obs_dim, act_dim = box_dims(self.env)
+        self.low = self.env.action_space.low.astype(np.float64)
+        self.high = self.env.action_space.high.astype(np.float64)
+        self.actor = PolicyActor(
+            obs_dim,
+            act_dim,
+            d4pg.policy_hidden,
+            d4pg.sigma if sigma is None else sigma,
+            d4pg.layer_norm,
+            seed=seed,
+        )
+        self.nstep = NStepAccumulator(d4pg.n_step, d4pg.discount)
+        self.random_steps = random_steps
+        self.rng = np.random.default_rng(seed + 7919)
+        self.weights_version = -1
+        self.total_steps = 0
+        self.obs, _ = self.env.reset(seed=seed)
+        self._ret, self._len = 0.0, 0
+
+    def set_weights(self, weights: Mapping[str, np.ndarray], version: int) -> None:
+        self.actor.set_weights(dict(weights))
+        self.weights_version = version
+
+    def _action(self) -> np.ndarray:
+        if self.weights_version < 0 or self.total_steps < self.random_steps:
+            return self.rng.uniform(-1.0, 1.0, self.actor.act_dim).astype(np.float32)
+        return self.actor.act(np.asarray(self.obs, dtype=np.float32), explore=True)
+
+    def collect(self, num_steps: int) -> RolloutResult:
+        """Run ``num_steps`` env steps; return completed transitions and finished episodes."""
+        start = time.perf_counter()
+        out: list[Transition] = []
+        result = RolloutResult(batch=None, worker=self.index, weights_version=self.weights_version)
+        for _ in range(num_steps):
+            action = self._action()
+            next_obs, reward, terminated, truncated, info = self.env.step(
+                to_env_action(action, self.low, self.high)
+            )
+            self._ret += float(reward)
+            self._len += 1
+            status = str(info.get("final_status", ""))
+            if status == SERVER_RESTARTED:
+                # The episode was cut by a crash: its pending window would bootstrap across it.
+                result.dropped += self.nstep.drop() + 1
+            else:
+                out += self.nstep.push(
+                    self.obs, action, float(reward), next_obs, bool(terminated), bool(truncated)
+                )
+            self.obs = next_obs
+            if terminated or truncated or status == SERVER_RESTARTED:
+                result.episodes.append(Episode(self._ret, self._len, status or "done", self.index))
+                self._ret, self._len = 0.0, 0
+                self.nstep.drop()  # nothing may carry over into the next episode
+                self.obs, _ = self.env.reset()
+        self.total_steps += num_steps
+        result.steps = num_steps
+        result.batch = stack_transitions(out) if out else None
+        result.wall_s = time.perf_counter() - start
+        return result
+
+    def ping(self) -> int:
+        return self.total_steps
+
+    def close(self) -> None:
+        self.env.close()
+
+
+def make_gym_env(env_id: str, env_kwargs: Mapping[str, Any] | None = None) -> EnvFactory:
+    """An EnvFactory for a registered Gymnasium id (importing robogym_ray registers ours)."""
+
+    def factory() -> gym.Env:
+        import robogym_ray  # noqa: F401 - registers the RoboGymRay/* ids
+
+        return gym.make(env_id, **dict(env_kwargs or {}))
+
+    return factory

@@ -1,0 +1,102 @@
+"""Rollout worker, learner service and evaluator as plain classes (no Ray) on Pendulum-v1."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+from robogym_ray.actors.evaluator import Evaluator, status_rates
+from robogym_ray.actors.learner_service import LearnerService
+from robogym_ray.actors.rollout import SERVER_RESTARTED, RolloutWorker, box_dims, make_gym_env
+from robogym_ray.errors import ConfigError
+from robogym_ray.learner.config import D4PGConfig
+
+SMALL = D4PGConfig(
+    policy_hidden=(32, 32), critic_hidden=(32, 32), batch_size=32, min_replay_size=128,
+    v_min=-1500.0, v_max=0.0, samples_per_insert=32.0, replay_capacity=10_000,
+)
+
+
+def test_worker_collects_nstep_transitions_and_episodes() -> None:
+    worker = RolloutWorker(make_gym_env("Pendulum-v1"), SMALL, index=3, seed=1)
+    result = worker.collect(450)  # two full 200-step episodes and a partial one
+    assert result.steps == 450 and result.worker == 3
+    assert [e.length for e in result.episodes] == [200, 200]
+    # Every step of a finished episode yields a transition; the 50 pending steps of the third
+    # episode yield those whose 5-step window is complete.
+    assert len(result.batch["reward"]) == 400 + 50 - (SMALL.n_step - 1)
+    disc = result.batch["discount"]
+    # Pendulum only truncates: every transition bootstraps; full windows carry gamma^n and the
+    # windows shortened at the time limit carry gamma^m, m < n.
+    assert np.all(disc > 0)
+    assert np.isclose(np.median(disc), SMALL.discount**SMALL.n_step)
+    assert np.isclose(disc.max(), SMALL.discount)
+    assert np.all(np.abs(result.batch["action"]) <= 1.0)
+
+
+class _CrashingEnv(gym.Wrapper):
+    """Pendulum whose step 7 reports a robot-server restart, as the Sim envs do."""
+
+    def __init__(self) -> None:
+        super().__init__(gym.make("Pendulum-v1"))
+        self.t = 0
+
+    def step(self, action):  # type: ignore[no-untyped-def]
+        self.t += 1
+        obs, r, term, trunc, info = self.env.step(action)
+        if self.t == 7:
+            return obs, r, False, True, {"final_status": SERVER_RESTARTED}
+        return obs, r, term, trunc, info
+
+
+def test_server_restart_drops_the_unfinished_window() -> None:
+    worker = RolloutWorker(_CrashingEnv, SMALL, seed=0)
+    result = worker.collect(10)
+    # Steps 1-2 completed 5-step windows before the crash; steps 3..7 were dropped.
+    assert len(result.batch["reward"]) == 2
+    assert result.dropped == 5
+    assert result.episodes[0].final_status == SERVER_RESTARTED
+    # No transition bootstraps from an observation after the crash: all have full windows.
+    assert np.allclose(result.batch["discount"], SMALL.discount**5)
+
+
+def test_learner_service_pays_samples_per_insert_and_checkpoints(tmp_path: Path) -> None:
+    worker = RolloutWorker(make_gym_env("Pendulum-v1"), SMALL, seed=0)
+    service = LearnerService(SMALL, 3, 1, checkpoint_dir=str(tmp_path), checkpoint_every=20)
+    metrics = service.add(worker.collect(100).batch)
+    assert metrics["steps_this_call"] == 0  # below min_replay_size: nothing owed yet
+    batch = worker.collect(100).batch  # the episode ends: 100 + 4 flushed transitions
+    metrics = service.add(batch)
+    # Each transition inserted once learning may start pays 32 samples / 32 per batch = 1 step.
+    assert metrics["learner_steps"] == len(batch["reward"]) == 104
+    assert np.isfinite(metrics["critic_loss"])
+    assert (tmp_path / "learner.pt").exists()
+
+    weights, version = service.get_weights()
+    restarted = LearnerService(SMALL, 3, 1, checkpoint_dir=str(tmp_path), checkpoint_every=20)
+    assert restarted.restored_from_step > 0 and restarted.version == restarted.restored_from_step
+    w2, _ = restarted.get_weights()
+    checkpointed = {k: np.allclose(weights[k], w2[k]) for k in weights}
+    assert version == restarted.version or not all(checkpointed.values())
+
+
+def test_evaluator_reports_rates() -> None:
+    worker = RolloutWorker(make_gym_env("Pendulum-v1"), SMALL)
+    service = LearnerService(SMALL, 3, 1)
+    evaluator = Evaluator(make_gym_env("Pendulum-v1"), SMALL)
+    weights, version = service.get_weights()
+    stats = evaluator.evaluate(weights, version, episodes=2)
+    assert stats["eval_episodes"] == 2 and stats["eval_timeout_rate"] == 1.0
+    assert -2000 < stats["eval_return"] < 0
+    worker.close()
+    assert status_rates(["success", "collision", "success", "max_steps_exceeded"]) == {
+        "success_rate": 0.5, "collision_rate": 0.25, "timeout_rate": 0.25
+    }
+
+
+def test_non_box_spaces_are_refused() -> None:
+    with pytest.raises(ConfigError, match="Box"):
+        box_dims(gym.make("CartPole-v1"))
