@@ -16,10 +16,10 @@ from collections.abc import Sequence
 from robogym_ray.errors import RoboGymRayError
 
 COMMANDS: dict[str, tuple[str, str]] = {
-    "serve": (
-        "robogym_ray.robots.serve",
-        "Start a standalone robot server (gRPC, robo-gym protocol).",
-    ),
+    "serve": ("robogym_ray.robots.serve", "Start a standalone robot server (robo-gym protocol)."),
+    "manager": ("robogym_ray.actors.manager", "Serve robo-gym's server manager (supervised)."),
+    "resume": ("robogym_ray.actors.resume", "Resume a paused real robot (operator)."),
+    "train": ("robogym_ray.actors.train_cmd", "Train D4PG with rollout workers on Ray."),
 }
 
 

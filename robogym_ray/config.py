@@ -54,8 +54,14 @@ def _scalar_type(tp: Any) -> Any:
     return args[0] if args else tp
 
 
-def add_config_args(parser: argparse.ArgumentParser, cls: type, prefix: str = "") -> None:
-    """Add one ``--field-name`` option per field of the dataclass ``cls``."""
+def add_config_args(
+    parser: argparse.ArgumentParser, cls: type, prefix: str = "", only_given: bool = False
+) -> None:
+    """Add one ``--field-name`` option per field of the dataclass ``cls``.
+
+    With ``only_given`` the parsed namespace holds only the flags given on the command line
+    (so they can override a config file); ``--help`` still shows the dataclass defaults.
+    """
     hints = typing.get_type_hints(cls)
     docs = field_docs(cls)
     for f in dataclasses.fields(cls):
@@ -65,6 +71,8 @@ def add_config_args(parser: argparse.ArgumentParser, cls: type, prefix: str = ""
         flag = "--" + prefix + f.name.replace("_", "-")
         default = f.default if f.default is not dataclasses.MISSING else f.default_factory()  # type: ignore[misc]
         help_text = f"{docs.get(f.name, '')} (default: {default!r})"
+        if only_given:
+            default = argparse.SUPPRESS
         origin = typing.get_origin(tp)
         if tp is bool:
             parser.add_argument(

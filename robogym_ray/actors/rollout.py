@@ -135,7 +135,8 @@ class RolloutWorker:
                 )
             self.obs = next_obs
             if terminated or truncated or status == SERVER_RESTARTED:
-                result.episodes.append(Episode(self._ret, self._len, status or "done", self.index))
+                ended = status or ("truncated" if truncated else "terminated")
+                result.episodes.append(Episode(self._ret, self._len, ended, self.index))
                 self._ret, self._len = 0.0, 0
                 self.nstep.drop()  # nothing may carry over into the next episode
                 self.obs, _ = self.env.reset()

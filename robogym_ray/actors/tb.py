@@ -1,0 +1,45 @@
+"""TensorBoard writer plus the terminal progress bar of a training run."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Mapping
+from pathlib import Path
+
+from torch.utils.tensorboard import SummaryWriter
+from tqdm import tqdm
+
+
+class RunLogger:
+    """Scalars go to ``run_dir`` (one TensorBoard run per experiment); progress to stderr."""
+
+    def __init__(self, run_dir: Path, total: int, progress: bool = True) -> None:
+        self.writer = SummaryWriter(log_dir=str(run_dir))
+        self.bar = tqdm(total=total, unit="step", disable=not progress, dynamic_ncols=True)
+        self._last_write = 0.0
+
+    def scalar(self, tag: str, value: float, step: int) -> None:
+        self.writer.add_scalar(tag, value, step)
+
+    def advance(self, steps: int) -> None:
+        self.bar.update(steps)
+
+    def maybe_write(self, scalars: Mapping[str, float], step: int, every_s: float) -> None:
+        now = time.monotonic()
+        if now - self._last_write >= every_s:
+            self.write(scalars, step)
+
+    def write(self, scalars: Mapping[str, float], step: int) -> None:
+        self._last_write = time.monotonic()
+        for tag, value in scalars.items():
+            self.writer.add_scalar(tag, value, step)
+        self.bar.set_postfix(
+            success=f"{scalars.get('train/success_rate', 0):.2f}",
+            ret=f"{scalars.get('train/return_last100', 0):.1f}",
+            learner=int(scalars.get("learner/steps", 0)),
+        )
+
+    def close(self) -> None:
+        self.writer.flush()
+        self.writer.close()
+        self.bar.close()

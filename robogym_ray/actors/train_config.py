@@ -1,0 +1,78 @@
+"""``TrainConfig``: what ``robogym-ray train`` runs (D4PG hyperparameters are separate)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from robogym_ray.errors import ConfigError
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """One distributed D4PG run."""
+
+    task: str = "navigation"
+    """Env id (e.g. RoboGymRay/ObstacleAvoidanceMir100Sim-v0) or short name: navigation,
+    positioning, pendulum."""
+    workers: int = 2
+    """Simulated rollout workers (each with its own robot server)."""
+    real_robot: tuple[str, ...] = ()
+    """HOST:PORT of real robot servers; each adds a rollout worker on the task's Rob variant."""
+    total_steps: int = 3000
+    """Env steps to collect over all workers."""
+    logdir: str = "runs"
+    """TensorBoard root; each run writes to LOGDIR/RUN_NAME."""
+    run_name: str | None = None
+    """Run directory name (default: task and time)."""
+    seed: int = 0
+    """Seed of worker i is seed + i; the learner uses seed."""
+    address: str | None = None
+    """Ray address: None starts a local Ray (embedded); 'auto' joins a running cluster."""
+    config: str | None = None
+    """JSON file {"train": {...}, "d4pg": {...}}; command-line flags win over its train part."""
+    num_cpus: float | None = None
+    """CPUs of the embedded local Ray (default: all of this machine)."""
+    steps_per_call: int = 50
+    """Env steps a worker runs per round trip to the driver."""
+    weight_sync_steps: int = 200
+    """A worker pulls new weights after this many of its own env steps."""
+    random_steps: int = 500
+    """Each worker's first env steps use uniform random actions."""
+    sigma_min: float = 0.1
+    """Exploration noise of the last worker; worker sigmas spread from d4pg.sigma down to it."""
+    checkpoint_every: int = 500
+    """Learner steps between checkpoints (a restarted learner resumes from the latest)."""
+    evaluator: bool = True
+    """Run an evaluator actor with the greedy policy on its own env."""
+    worker_cpus: float = 0.4
+    """Ray CPUs reserved per rollout worker (fractional: robot servers are light)."""
+    learner_cpus: float = 0.5
+    """Ray CPUs reserved for the learner."""
+    learner_gpus: float = -1.0
+    """GPUs for the learner: -1 = one if the cluster has any, else 0."""
+    server_resource: str | None = None
+    """Custom Ray resource robot-server actors require (places them on the nodes that have it)."""
+    log_every_s: float = 5.0
+    """Seconds between TensorBoard writes of rates and counters."""
+    progress: bool = True
+    """Show a progress bar in the terminal."""
+
+    def __post_init__(self) -> None:
+        checks = [
+            (self.workers >= 0, "workers", ">= 0"),
+            (self.workers + len(self.real_robot) >= 1, "workers", ">= 1 with no real robot"),
+            (self.total_steps >= 1, "total_steps", ">= 1"),
+            (self.steps_per_call >= 1, "steps_per_call", ">= 1"),
+            (self.weight_sync_steps >= 1, "weight_sync_steps", ">= 1"),
+            (self.sigma_min >= 0, "sigma_min", ">= 0"),
+            (self.worker_cpus > 0 and self.learner_cpus > 0, "worker_cpus/learner_cpus", "> 0"),
+        ]
+        for ok, name, expected in checks:
+            if not ok:
+                raise ConfigError(
+                    f"TrainConfig.{name}={getattr(self, name.split('/')[0])!r}; expected {expected}"
+                )
+        for address in self.real_robot:
+            host, sep, port = address.rpartition(":")
+            if not sep or not host or not port.isdigit():
+                raise ConfigError(f"--real-robot {address!r} is not HOST:PORT")

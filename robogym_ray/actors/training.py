@@ -1,0 +1,289 @@
+"""The distributed training program: rollout workers -> learner -> weights -> workers.
+
+``run_training`` is the driver. It joins or starts Ray, starts the supervisor (robot servers),
+the learner actor, the rollout-worker actors and the evaluator, then moves data between them:
+each worker result (n-step transitions) goes to the learner, which trains at its
+samples-per-insert ratio and publishes weights through the object store; workers pull those
+weights every ``weight_sync_steps`` of their steps. Everything the user watches goes to
+TensorBoard under ``logdir/run_name``.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import time
+from collections import Counter, deque
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import ray
+from ray.exceptions import RayActorError
+
+from robogym_ray.actors import training_remote as remote
+from robogym_ray.actors.evaluator import status_rates
+from robogym_ray.actors.rollout import RolloutResult, box_dims, make_gym_env
+from robogym_ray.actors.tasks import TaskPreset, d4pg_for, resolve_task
+from robogym_ray.actors.train_config import TrainConfig
+from robogym_ray.learner.config import D4PGConfig
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class WorkerSlot:
+    """Driver-side bookkeeping of one rollout worker."""
+
+    index: int
+    handle: Any
+    kind: str = "sim"
+    steps_since_sync: int = 0
+    weights_version: int = -1
+
+
+@dataclass
+class RunStats:
+    env_steps: int = 0
+    episodes: int = 0
+    dropped_steps: int = 0
+    learner_failures: int = 0
+    worker_failures: int = 0
+    statuses: deque[str] = field(default_factory=lambda: deque(maxlen=100))
+    returns: deque[float] = field(default_factory=lambda: deque(maxlen=100))
+    learner: dict[str, float] = field(default_factory=dict)
+    eval: dict[str, float] = field(default_factory=dict)
+
+
+def worker_sigmas(d4pg: D4PGConfig, cfg: TrainConfig, n: int) -> list[float]:
+    """Ape-X style: a spread of exploration noises from d4pg.sigma down to sigma_min."""
+    if n <= 1:
+        return [d4pg.sigma] * n
+    return list(np.linspace(d4pg.sigma, min(cfg.sigma_min, d4pg.sigma), n))
+
+
+def real_env_id(env_id: str) -> str:
+    """The Rob variant of a RoboGymRay Sim id (the same task on a real robot)."""
+    if env_id.startswith("RoboGymRay/") and env_id.endswith("Sim-v0"):
+        return env_id[: -len("Sim-v0")] + "Rob-v0"
+    raise ValueError(f"{env_id} has no real-robot variant")
+
+
+class TrainingRun:
+    """Owns the actors of one run; ``run()`` drives it to ``total_steps``."""
+
+    def __init__(self, cfg: TrainConfig, d4pg: D4PGConfig, preset: TaskPreset) -> None:
+        self.cfg, self.d4pg, self.preset = cfg, d4pg, preset
+        self.run_dir = Path(cfg.logdir) / (
+            cfg.run_name or f"{preset.env_id.split('/')[-1]}-{time.strftime('%Y%m%d-%H%M%S')}"
+        )
+        self.run_dir.mkdir(parents=True, exist_ok=True)
+        self.stats = RunStats()
+        self.supervisor = remote.start_supervisor(cfg, preset.env_id)
+        probe = make_gym_env(preset.env_id, self._env_kwargs(0, probe=True))()
+        self.obs_dim, self.act_dim = box_dims(probe)
+        probe.close()
+        self.learner = remote.LearnerActor.options(
+            num_cpus=cfg.learner_cpus,
+            num_gpus=remote.learner_gpus(cfg),
+            max_restarts=3,
+            max_task_retries=0,
+        ).remote(
+            d4pg,
+            self.obs_dim,
+            self.act_dim,
+            seed=cfg.seed,
+            checkpoint_dir=str(self.run_dir / "checkpoints"),
+            checkpoint_every=cfg.checkpoint_every,
+        )
+        self.workers = self._start_workers()
+        self.evaluator = None
+        if cfg.evaluator:
+            self.evaluator = remote.EvaluatorActor.options(num_cpus=0.2).remote(
+                make_gym_env(preset.env_id, self._env_kwargs(10_000)), d4pg, seed=cfg.seed + 10_000
+            )
+        self.weights_ref = self.learner.get_weights.remote()
+        self.version = 0
+
+    def _env_kwargs(self, index: int, probe: bool = False) -> dict[str, Any]:
+        return remote.env_kwargs_for(self.supervisor, self.preset.env_id, index, probe=probe)
+
+    def _start_workers(self) -> list[WorkerSlot]:
+        cfg = self.cfg
+        n = cfg.workers + len(cfg.real_robot)
+        sigmas = worker_sigmas(self.d4pg, cfg, n)
+        slots = []
+        for i in range(n):
+            if i < cfg.workers:
+                factory, kind = make_gym_env(self.preset.env_id, self._env_kwargs(i)), "sim"
+            else:
+                address = cfg.real_robot[i - cfg.workers]
+                factory = make_gym_env(real_env_id(self.preset.env_id), {"rs_address": address})
+                kind = "real"
+            handle = remote.RolloutActor.options(num_cpus=cfg.worker_cpus).remote(
+                factory,
+                self.d4pg,
+                index=i,
+                sigma=sigmas[i],
+                seed=cfg.seed + i,
+                random_steps=cfg.random_steps,
+            )
+            slots.append(WorkerSlot(i, handle, kind))
+        return slots
+
+    # -- the loop ---------------------------------------------------------------------------
+    def run(self) -> dict[str, Any]:
+        from robogym_ray.actors.tb import RunLogger  # imports tensorboard lazily
+
+        cfg = self.cfg
+        logger = RunLogger(self.run_dir, total=cfg.total_steps, progress=cfg.progress)
+        pending = {slot.handle.collect.remote(cfg.steps_per_call): slot for slot in self.workers}
+        learner_calls: deque[Any] = deque()
+        eval_ref = self._start_eval()
+        start = time.perf_counter()
+        launched = len(pending) * cfg.steps_per_call
+        while pending:
+            [ref], _ = ray.wait(list(pending), num_returns=1)
+            slot = pending.pop(ref)
+            try:
+                result: RolloutResult = ray.get(ref)
+            except RayActorError:
+                self.stats.worker_failures += 1
+                log.warning("rollout worker %d died; it is not replaced", slot.index)
+                continue
+            self._record(result, logger)
+            if result.batch is not None:
+                learner_calls.append(self.learner.add.remote(result.batch))
+            self._drain_learner(learner_calls, block=len(learner_calls) > 2)
+            self._maybe_sync(slot, result.steps)
+            if launched < cfg.total_steps:
+                pending[slot.handle.collect.remote(cfg.steps_per_call)] = slot
+                launched += cfg.steps_per_call
+            eval_ref = self._poll_eval(eval_ref)
+            logger.maybe_write(self._scalars(start), self.stats.env_steps, cfg.log_every_s)
+        self._drain_learner(learner_calls, block=True, all_=True)
+        summary = self._finish(start, logger)
+        return summary
+
+    def _record(self, result: RolloutResult, logger: Any) -> None:
+        s = self.stats
+        s.env_steps += result.steps
+        s.dropped_steps += result.dropped
+        for ep in result.episodes:
+            s.episodes += 1
+            s.statuses.append(ep.final_status)
+            s.returns.append(ep.ret)
+            logger.scalar("episode/return", ep.ret, s.env_steps)
+            logger.scalar("episode/length", ep.length, s.env_steps)
+        logger.advance(result.steps)
+
+    def _drain_learner(self, calls: deque[Any], block: bool, all_: bool = False) -> None:
+        while calls and (block or ray.wait([calls[0]], timeout=0)[0]):
+            ref = calls.popleft()
+            try:
+                metrics = ray.get(ref)
+            except RayActorError:
+                # The learner died mid-call; Ray restarts it from its checkpoint. This batch
+                # is lost (counted), the next ones go to the restarted learner.
+                self.stats.learner_failures += 1
+                log.warning("learner actor failed; Ray restarts it from its last checkpoint")
+                continue
+            self.stats.learner.update(metrics)
+            if metrics.get("steps_this_call", 0) > 0:
+                self.weights_ref = self.learner.get_weights.remote()
+            if not all_:
+                block = False
+
+    def _maybe_sync(self, slot: WorkerSlot, steps: int) -> None:
+        slot.steps_since_sync += steps
+        if slot.steps_since_sync >= self.cfg.weight_sync_steps or slot.weights_version < 0:
+            slot.handle.set_weights.remote(self.weights_ref)
+            slot.steps_since_sync = 0
+            slot.weights_version = int(self.stats.learner.get("learner_steps", 0))
+
+    def _start_eval(self) -> Any:
+        return None if self.evaluator is None else self.evaluator.evaluate.remote(self.weights_ref)
+
+    def _poll_eval(self, ref: Any) -> Any:
+        if ref is None or not ray.wait([ref], timeout=0)[0]:
+            return ref
+        try:
+            self.stats.eval = ray.get(ref)
+        except RayActorError:
+            log.warning("evaluator failed; evaluation stops")
+            return None
+        return self._start_eval()
+
+    def _scalars(self, start: float) -> dict[str, float]:
+        s, wall = self.stats, max(1e-9, time.perf_counter() - start)
+        learner_steps = s.learner.get("learner_steps", 0.0)
+        out = {f"train/{k}": v for k, v in status_rates(list(s.statuses)).items()}
+        out.update({f"eval/{k.removeprefix('eval_')}": v for k, v in s.eval.items()})
+        out.update(
+            {
+                "train/return_last100": float(np.mean(s.returns)) if s.returns else 0.0,
+                "throughput/env_steps_per_s": s.env_steps / wall,
+                "throughput/learner_steps_per_s": learner_steps / wall,
+                "replay/size": s.learner.get("replay_size", 0.0),
+                "replay/mean_priority": s.learner.get("mean_priority", 0.0),
+                "loss/critic": s.learner.get("critic_loss", 0.0),
+                "loss/policy": s.learner.get("policy_loss", 0.0),
+                "learner/mean_q": s.learner.get("mean_q", 0.0),
+                "learner/steps": learner_steps,
+                "weights/lag": learner_steps - min(w.weights_version for w in self.workers),
+                "faults/dropped_steps": float(s.dropped_steps),
+                "faults/learner_failures": float(s.learner_failures),
+                "faults/worker_failures": float(s.worker_failures),
+            }
+        )
+        for cause, count in remote.restart_counts(self.supervisor).items():
+            out[f"restarts/{cause}"] = float(count)
+        return out
+
+    def _finish(self, start: float, logger: Any) -> dict[str, Any]:
+        checkpoint = ray.get(self.learner.checkpoint.remote())
+        wall = time.perf_counter() - start
+        scalars = self._scalars(start)
+        logger.write(scalars, self.stats.env_steps)
+        logger.close()
+        summary = {
+            "task": self.preset.env_id,
+            "env_steps": self.stats.env_steps,
+            "episodes": self.stats.episodes,
+            "wall_s": round(wall, 2),
+            "learner_steps": int(scalars["learner/steps"]),
+            "checkpoint": checkpoint,
+            "restarts": remote.restart_counts(self.supervisor),
+            "final_status_counts": dict(Counter(self.stats.statuses)),
+            "logdir": str(self.run_dir),
+            **{k: round(v, 4) for k, v in scalars.items()},
+        }
+        (self.run_dir / "summary.json").write_text(json.dumps(summary, indent=2))
+        return summary
+
+    def shutdown(self) -> None:
+        for slot in self.workers:
+            ray.kill(slot.handle)
+        for actor in (self.evaluator, self.learner):
+            if actor is not None:
+                ray.kill(actor)
+        remote.stop_supervisor(self.supervisor)
+
+
+def run_training(cfg: TrainConfig, d4pg_overrides: Mapping[str, Any] | None = None) -> dict:
+    """Run one training to completion; returns the summary (also in ``run_dir/summary.json``)."""
+    preset = resolve_task(cfg.task)
+    d4pg = d4pg_for(preset, d4pg_overrides)
+    started_ray = remote.ensure_ray(cfg)
+    run = TrainingRun(cfg, d4pg, preset)
+    try:
+        (run.run_dir / "config.json").write_text(
+            json.dumps({"train": asdict(cfg), "d4pg": asdict(d4pg)}, indent=2)
+        )
+        return run.run()
+    finally:
+        run.shutdown()
+        if started_ray:
+            ray.shutdown()
