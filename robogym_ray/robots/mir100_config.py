@@ -1,0 +1,108 @@
+"""Configuration of the simulated MiR100 (one frozen dataclass, field docstrings = help)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from robogym_ray.errors import ConfigError
+from robogym_ray.robots.command_handler import CommandHandlerConfig
+from robogym_ray.robots.mir100_drive import DriveLimits
+from robogym_ray.robots.mir100_scenes import check_scene
+
+LASER_CASTERS = ("boxes", "bullet")
+"""Ray casters ``Mir100Config.laser_caster`` accepts (see ``mir100_lasers``)."""
+
+
+@dataclass(frozen=True)
+class Mir100Config:
+    """Everything that defines one simulated MiR100."""
+
+    scene: str = "empty"
+    """``empty`` (ground + target marker) or ``lab_6x8`` (walls + 3 cubes). The default is the
+    one of robo-gym's ``sim_robot_server.launch`` (``empty_world_target.world``)."""
+    max_linear_velocity: float = 1.0
+    """Diff-drive controller limit on |v| (m/s)."""
+    max_angular_velocity: float = 1.5
+    """Diff-drive controller limit on |omega| (rad/s)."""
+    max_linear_acceleration: float = 2.0
+    """Diff-drive controller limit on |dv/dt| (m/s^2)."""
+    max_angular_acceleration: float = 2.5
+    """Diff-drive controller limit on |domega/dt| (rad/s^2)."""
+    laser_noise_sigma: float = 0.0
+    """Std. dev. of Gaussian laser range noise (m); 0.0 = clean sim (Gazebo uses 0.01)."""
+    laser_range_min: float = 0.05
+    """Lower range clip of both scanners (m)."""
+    laser_range_max: float = 29.0
+    """Upper range clip (m); a beam that hits nothing reads this."""
+    laser_caster: str = "boxes"
+    """``boxes``: exact numpy ray/box test (fast; every collidable body must be an upright box
+    spanning the scan plane, true of both scenes) or ``bullet``: PyBullet's rayTestBatch
+    (any shape, ~5x slower in ``lab_6x8``)."""
+    scan_period: float = 0.08
+    """Seconds between laser scans in real-time mode (12.5 Hz, the S300 rate)."""
+    action_cycle: float = 0.1
+    """Seconds between agent actions (the MiR command handler runs at 10 Hz)."""
+    actuation_cycle: float = 0.1
+    """Seconds between twist publications to the controller."""
+    repeat: int | None = None
+    """Publications per action; None = action_cycle / actuation_cycle."""
+    substep: float = 0.01
+    """Integration and contact-check step (s); 1 cm per substep at full speed."""
+    initial_pose: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    """Start pose (x, y, yaw) before the first SetState (launch args robot_x/y/yaw)."""
+    max_abs_position: float = 50.0
+    """SetState refuses poses with |x| or |y| above this (m)."""
+
+    def __post_init__(self) -> None:
+        check_scene(self.scene)
+        if self.laser_caster not in LASER_CASTERS:
+            raise ConfigError(
+                f"Mir100Config.laser_caster = {self.laser_caster!r}; expected one of "
+                f"{list(LASER_CASTERS)}"
+            )
+        positive = {
+            "max_linear_velocity": self.max_linear_velocity,
+            "max_angular_velocity": self.max_angular_velocity,
+            "max_linear_acceleration": self.max_linear_acceleration,
+            "max_angular_acceleration": self.max_angular_acceleration,
+            "laser_range_max": self.laser_range_max,
+            "scan_period": self.scan_period,
+            "substep": self.substep,
+            "max_abs_position": self.max_abs_position,
+        }
+        for name, value in positive.items():
+            if not (math.isfinite(value) and value > 0):
+                raise ConfigError(f"Mir100Config.{name} = {value}; expected a finite value > 0")
+        if not 0.0 <= self.laser_range_min < self.laser_range_max:
+            raise ConfigError(
+                f"Mir100Config.laser_range_min = {self.laser_range_min}; expected in "
+                f"[0, laser_range_max={self.laser_range_max})"
+            )
+        x, y, yaw = self.initial_pose
+        if not all(math.isfinite(v) for v in (x, y, yaw)) or max(abs(x), abs(y)) > (
+            self.max_abs_position
+        ):
+            raise ConfigError(
+                f"Mir100Config.initial_pose = {self.initial_pose}; expected finite values with "
+                f"|x|, |y| <= {self.max_abs_position}"
+            )
+        if not (math.isfinite(self.laser_noise_sigma) and self.laser_noise_sigma >= 0):
+            raise ConfigError(
+                f"Mir100Config.laser_noise_sigma = {self.laser_noise_sigma}; expected >= 0"
+            )
+
+    @property
+    def limits(self) -> DriveLimits:
+        return DriveLimits(
+            self.max_linear_velocity,
+            self.max_angular_velocity,
+            self.max_linear_acceleration,
+            self.max_angular_acceleration,
+        )
+
+    def handler_config(self) -> CommandHandlerConfig:
+        try:
+            return CommandHandlerConfig(self.action_cycle, self.actuation_cycle, self.repeat)
+        except ValueError as err:
+            raise ConfigError(f"Mir100Config command-handler timing: {err}") from err
