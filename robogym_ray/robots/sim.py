@@ -8,7 +8,9 @@ per Ray actor is the norm, but tests and benchmarks run many side by side), whic
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Sequence
+import os
+import sys
+from collections.abc import Iterator, Sequence
 
 import numpy as np
 import pybullet as p
@@ -17,11 +19,27 @@ from pybullet_utils.bullet_client import BulletClient
 Vec3 = Sequence[float]
 
 
+@contextlib.contextmanager
+def _quiet_stdout() -> Iterator[None]:
+    """Silence C-level stdout: PyBullet prints ``argv[0]=`` on every connect, which would corrupt
+    the one line ``robogym-ray serve`` promises on stdout."""
+    sys.stdout.flush()
+    saved = os.dup(1)
+    try:
+        with open(os.devnull, "wb") as devnull:
+            os.dup2(devnull.fileno(), 1)
+        yield
+    finally:
+        os.dup2(saved, 1)
+        os.close(saved)
+
+
 class PyBulletWorld:
     """One PyBullet physics client with named bodies."""
 
     def __init__(self, timestep: float = 1.0 / 240.0, gravity: float = -9.81) -> None:
-        self.client = BulletClient(connection_mode=p.DIRECT)
+        with _quiet_stdout():
+            self.client = BulletClient(connection_mode=p.DIRECT)
         self.timestep = timestep
         self.client.setTimeStep(timestep)
         self.client.setGravity(0.0, 0.0, gravity)
