@@ -1,0 +1,174 @@
+"""Configuration of a simulated UR arm and its parsing from launch-argument options (spec b.5)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+
+from robogym_ray.errors import ConfigError, UnknownRobotError
+from robogym_ray.robots.ur_model import UR_MODELS
+from robogym_ray.robots.ur_state import RS_MODES
+
+
+@dataclass(frozen=True)
+class URScene:
+    """What surrounds the arm."""
+
+    table: bool
+    """A 1.0 x 1.0 x 0.1 m table centred at (-0.05, 0.2, 0.05), top at base_link height."""
+    object_collision: bool
+    """Whether the object spheres collide with the arm (sphere50 vs sphere50_no_collision)."""
+
+
+SCENES: dict[str, URScene] = {
+    "empty": URScene(table=False, object_collision=False),
+    "tabletop": URScene(table=True, object_collision=True),
+    "tabletop_no_collision": URScene(table=True, object_collision=False),
+}
+WORLDS: dict[str, str] = {
+    "empty.world": "empty",
+    "tabletop_sphere50.world": "tabletop",
+    "tabletop_sphere50_no_collision.world": "tabletop_no_collision",
+}
+"""robo-gym ``world_name`` -> our scene."""
+DEFAULT_SCENE = "empty"
+"""The launch file's default world is empty.world."""
+
+IGNORED_OPTIONS = frozenset(
+    {"gui", "rviz_gui", "gazebo_gui", "server_port", "object_0_model_name", "object_0_frame",
+     "object_1_model_name", "object_1_frame", "object_trajectory_file_name", "target_mode"}
+)  # fmt: skip
+"""Accepted and ignored: GUIs do not exist in DIRECT mode; object models/frames are fixed by the
+scene (spheres of 0.025 m, frame ``target``); target_mode only matters via rs_mode."""
+_MUST_BE_FALSE = ("real_robot", "use_voxel_occupancy")
+"""Accepted only as false: there is no real robot or voxel occupancy behind a simulated arm."""
+
+_HANDLED = frozenset(
+    {"world_name", "rs_mode", "action_mode", "reference_frame", "max_velocity_scale_factor",
+     "action_cycle_rate", "objects_controller", "n_objects", "ur_model", "ee_frame"}
+)  # fmt: skip
+
+
+@dataclass(frozen=True)
+class URConfig:
+    """One simulated UR arm (the ur_robot_server launch arguments we honour)."""
+
+    model: str = "ur5"
+    """ur3 | ur3e | ur5 | ur5e | ur10 | ur10e | ur16e."""
+    scene: str = DEFAULT_SCENE
+    """empty | tabletop | tabletop_no_collision (see SCENES / WORLDS)."""
+    rs_mode: str = "1object"
+    """only_robot | 1object | 1moving2points | 2objects2points: which state keys are served."""
+    action_mode: str = "abs_pos"
+    """abs_pos: actions are absolute joint targets; delta_pos: targets = current + action."""
+    reference_frame: str = "base_link"
+    """base_link, or base (base_link rotated pi about z: x and y negated)."""
+    max_velocity_scale_factor: float = 1.0
+    """vmax_j = factor x Vabs_j for the trajectory durations."""
+    action_cycle: float = 0.04
+    """Seconds per action (the paper's 25 Hz); option action_cycle_rate (Hz) sets 1/rate."""
+    actuation_cycle: float = 0.008
+    """Seconds per controller tick (the trajectory controller's 125 Hz)."""
+    repeat: int | None = None
+    """Ticks a command is published; None = one action cycle's worth."""
+    objects_controller: bool = True
+    """Accepted for compatibility; objects of the rs_mode always follow their trajectories."""
+    n_objects: int = 0
+    """Accepted for compatibility; the rs_mode decides how many objects exist."""
+
+    def __post_init__(self) -> None:
+        _choice("ur_model", self.model, UR_MODELS)
+        _choice("scene", self.scene, SCENES)
+        _choice("rs_mode", self.rs_mode, RS_MODES)
+        _choice("action_mode", self.action_mode, ("abs_pos", "delta_pos"))
+        _choice("reference_frame", self.reference_frame, ("base_link", "base"))
+        for name in ("max_velocity_scale_factor", "action_cycle", "actuation_cycle"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise ConfigError(f"{name} must be a positive finite number, got {value!r}")
+        if self.actuation_cycle > self.action_cycle + 1e-12:
+            raise ConfigError(
+                f"action_cycle ({self.action_cycle} s) must not be shorter than "
+                f"actuation_cycle ({self.actuation_cycle} s): action_cycle_rate <= 125 Hz"
+            )
+
+
+def _choice(name: str, value: str, known: Iterable[str]) -> None:
+    if value not in known:
+        error = UnknownRobotError if name in ("ur_model", "scene") else ConfigError
+        raise error(f"unknown {name} {value!r}; known: {', '.join(sorted(known))}")
+
+
+def _float(name: str, text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise ConfigError(f"option {name}={text!r} is not a number") from None
+    if not math.isfinite(value):
+        raise ConfigError(f"option {name}={text!r} must be finite")
+    return value
+
+
+def _bool(name: str, text: str) -> bool:
+    lowered = text.strip().lower()
+    if lowered in ("true", "1"):
+        return True
+    if lowered in ("false", "0"):
+        return False
+    raise ConfigError(f"option {name}={text!r} is not a boolean (true/false)")
+
+
+def resolve_scene(scene: str | None, world_name: str | None) -> str:
+    """Scene from the explicit argument (a scene or a world file name) and/or ``world_name``."""
+    names = [n for n in (scene, world_name) if n is not None]
+    resolved = []
+    for name in names:
+        key = WORLDS.get(name, name)
+        if key not in SCENES:
+            known = sorted(SCENES) + sorted(WORLDS)
+            raise UnknownRobotError(f"unknown UR scene/world {name!r}; known: {', '.join(known)}")
+        resolved.append(key)
+    if len(set(resolved)) > 1:
+        raise ConfigError(f"scene {scene!r} contradicts option world_name={world_name!r}")
+    return resolved[0] if resolved else DEFAULT_SCENE
+
+
+def parse_options(model: str, scene: str | None, options: Mapping[str, str]) -> URConfig:
+    """Build a URConfig from launch-argument style options; unknown options raise ConfigError."""
+    opts = dict(options)
+    known = _HANDLED | IGNORED_OPTIONS | set(_MUST_BE_FALSE)
+    for key in opts:
+        if key not in known:
+            raise ConfigError(f"unknown UR option {key!r}; known: {', '.join(sorted(known))}")
+    for key in _MUST_BE_FALSE:
+        if key in opts and _bool(key, opts[key]):
+            raise ConfigError(f"option {key}=true is not supported by the simulated UR")
+    if "ur_model" in opts and opts["ur_model"] != model:
+        raise ConfigError(f"option ur_model={opts['ur_model']!r} contradicts robot {model!r}")
+    if opts.get("ee_frame", "tool0") != "tool0":
+        raise ConfigError(f"option ee_frame={opts['ee_frame']!r}: only tool0 is supported")
+    kwargs: dict[str, object] = {"model": model}
+    kwargs["scene"] = resolve_scene(scene, opts.get("world_name"))
+    # rs_mode:=false (the launch default) means "use target_mode", as in the launch file.
+    rs_mode = opts.get("rs_mode", "false")
+    if rs_mode == "false":
+        rs_mode = opts.get("target_mode", URConfig.rs_mode)
+    kwargs["rs_mode"] = rs_mode
+    for key in ("action_mode", "reference_frame"):
+        if key in opts:
+            kwargs[key] = opts[key]
+    if "max_velocity_scale_factor" in opts:
+        kwargs["max_velocity_scale_factor"] = _float(
+            "max_velocity_scale_factor", opts["max_velocity_scale_factor"]
+        )
+    if "action_cycle_rate" in opts:
+        rate = _float("action_cycle_rate", opts["action_cycle_rate"])
+        if rate <= 0:
+            raise ConfigError(f"option action_cycle_rate={opts['action_cycle_rate']!r} must be > 0")
+        kwargs["action_cycle"] = 1.0 / rate
+    if "objects_controller" in opts:
+        kwargs["objects_controller"] = _bool("objects_controller", opts["objects_controller"])
+    if "n_objects" in opts:
+        kwargs["n_objects"] = int(_float("n_objects", opts["n_objects"]))  # launch: int(float(x))
+    return URConfig(**kwargs)  # type: ignore[arg-type]

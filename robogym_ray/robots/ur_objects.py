@@ -1,0 +1,204 @@
+"""Object trajectories of robo-gym's UR objects controller (spec c.2.4), sampled at 100 Hz.
+
+A SetState carries ``object_<i>_function`` in ``string_params`` and the function's parameters as
+``object_<i>_<name>`` floats. Each function becomes a looping array of xyz samples (reference
+frame), one per 10 ms of *sim* time; ``ObjectTrajectory.position(t)`` picks the sample in force at
+``t`` seconds after the start, exactly as the ROS controller publishes one sample per 10 ms.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.interpolate import splev, splprep
+from scipy.signal import sawtooth
+
+from robogym_ray.errors import InvalidStateError
+
+SAMPLE_RATE = 100.0
+"""Samples per second of every trajectory."""
+PARK_Z = 3.0
+"""Parked objects wait at (i, 0, 3) m in the reference frame (ROS: while the arm moves)."""
+MAX_SPLINE_TRIES = 1000
+"""Redraws before 3d_spline_ur5_workspace gives up (an impossible box would loop forever)."""
+
+
+@dataclass(frozen=True)
+class ObjectTrajectory:
+    """A looping sequence of positions, one per 1/SAMPLE_RATE s."""
+
+    function: str
+    samples: np.ndarray
+    """(N, 3) xyz in the reference frame, N >= 1."""
+
+    def index(self, t: float) -> int:
+        """Sample index in force ``t`` s after the start (small epsilon against float drift)."""
+        return int(math.floor(max(t, 0.0) * SAMPLE_RATE + 1e-6)) % len(self.samples)
+
+    def position(self, t: float) -> np.ndarray:
+        return self.samples[self.index(t)]
+
+
+def parked(index: int) -> ObjectTrajectory:
+    return ObjectTrajectory("parked", np.array([[float(index), 0.0, PARK_Z]]))
+
+
+# -- the functions ----------------------------------------------------------------------------
+Params = Mapping[str, float]
+Builder = Callable[[Params, np.random.Generator], np.ndarray]
+
+
+def _fixed_position(p: Params, rng: np.random.Generator) -> np.ndarray:
+    return np.array([[p["x"], p["y"], p["z"]]])
+
+
+def _triangle_wave(p: Params, rng: np.random.Generator) -> np.ndarray:
+    freq = p["z_frequency"]
+    if not freq > 0:
+        raise InvalidStateError(f"triangle_wave needs z_frequency > 0, got {freq}")
+    n = max(1, int(SAMPLE_RATE / freq))
+    t = np.arange(n) / SAMPLE_RATE
+    # width 0.5 makes sawtooth a symmetric triangle wave in [-1, 1] starting at -1.
+    z = p["z_offset"] + p["z_amplitude"] * sawtooth(2 * np.pi * freq * t, 0.5)
+    return np.column_stack([np.full(n, p["x"]), np.full(n, p["y"]), z])
+
+
+def _spline_samples(points: np.ndarray, n_samples: int) -> np.ndarray:
+    # s=0: an interpolating spline through every control point; the closed loop comes from the
+    # last control point repeating the first.
+    tck, _ = splprep(points.T, s=0)
+    return np.column_stack(splev(np.linspace(0.0, 1.0, n_samples), tck))
+
+
+def _spline_counts(p: Params) -> tuple[int, int]:
+    n_points, n_samples = int(p["n_points"]), int(p["n_sampling_points"])
+    if n_points < 4 or n_samples < 1:
+        raise InvalidStateError(
+            f"3d spline needs n_points >= 4 and n_sampling_points >= 1, got "
+            f"n_points={p['n_points']}, n_sampling_points={p['n_sampling_points']}"
+        )
+    return n_points, n_samples
+
+
+def _box_points(p: Params, n: int, rng: np.random.Generator) -> np.ndarray:
+    low = [p["x_min"], p["y_min"], p["z_min"]]
+    high = [p["x_max"], p["y_max"], p["z_max"]]
+    pts = rng.uniform(low, high, size=(n, 3))
+    pts[-1] = pts[0]
+    return pts
+
+
+def _spline_3d(p: Params, rng: np.random.Generator) -> np.ndarray:
+    n_points, n_samples = _spline_counts(p)
+    return _spline_samples(_box_points(p, n_points, rng), n_samples)
+
+
+def _spline_3d_ur5_workspace(p: Params, rng: np.random.Generator) -> np.ndarray:
+    n_points, n_samples = _spline_counts(p)
+    for _ in range(MAX_SPLINE_TRIES):
+        pts = _box_points(p, n_points, rng)
+        # The first point starts away from the robot, on one of the four sides.
+        pts[0, :2] = rng.uniform(0.5, 1.0, size=2) * rng.choice([-1.0, 1.0], size=2)
+        pts[-1] = pts[0]
+        samples = _spline_samples(pts, n_samples)
+        if (
+            np.hypot(samples[:, 0], samples[:, 1]).min() > 0.2
+            and np.linalg.norm(samples, axis=1).min() > 0.35
+        ):
+            return samples
+    raise InvalidStateError(
+        f"3d_spline_ur5_workspace: no curve in the box {dict(p)} stayed > 0.2 m from the z axis "
+        f"and > 0.35 m from the origin in {MAX_SPLINE_TRIES} draws"
+    )
+
+
+def _hold(point: np.ndarray, seconds: float) -> np.ndarray:
+    return np.repeat(point[None, :], max(0, int(seconds * SAMPLE_RATE)), axis=0)
+
+
+def _line(a: np.ndarray, b: np.ndarray, n: float) -> np.ndarray:
+    return np.linspace(a, b, max(0, int(n)))
+
+
+def _point(p: Params, tag: str) -> np.ndarray:
+    return np.array([p[f"x_{tag}"], p[f"y_{tag}"], p[f"z_{tag}"]])
+
+
+def _fixed_position_ab(p: Params, rng: np.random.Generator) -> np.ndarray:
+    a, b = _point(p, "a"), _point(p, "b")
+    return np.concatenate([_hold(a, p["hold_a"]), _hold(b, p["hold_b"])])
+
+
+def _interpolated_abc(p: Params, rng: np.random.Generator) -> np.ndarray:
+    a, b, c = _point(p, "a"), _point(p, "b"), _point(p, "c")
+    return np.concatenate(
+        [
+            _hold(a, p["hold_a"]),
+            _line(a, b, p["n_sampling_points_ab"]),
+            _hold(b, p["hold_b"]),
+            _line(b, c, p["n_sampling_points_bc"]),
+            _hold(c, p["hold_c"]),
+        ]
+    )
+
+
+_SPLINE = ("x_min", "x_max", "y_min", "y_max", "z_min", "z_max", "n_points", "n_sampling_points")
+_ABC = tuple(f"{k}_{t}" for t in "abc" for k in "xyz")
+FUNCTIONS: dict[str, tuple[tuple[str, ...], Builder]] = {
+    "fixed_position": (("x", "y", "z"), _fixed_position),
+    "triangle_wave": (("x", "y", "z_amplitude", "z_frequency", "z_offset"), _triangle_wave),
+    "3d_spline": (_SPLINE, _spline_3d),
+    "3d_spline_ur5_workspace": (_SPLINE, _spline_3d_ur5_workspace),
+    "fixed_position_ab": (_ABC[:6] + ("hold_a", "hold_b"), _fixed_position_ab),
+    "interpolated_abc": (
+        _ABC + ("hold_a", "hold_b", "hold_c", "n_sampling_points_ab", "n_sampling_points_bc"),
+        _interpolated_abc,
+    ),
+}
+"""function name -> (required float params without the ``object_<i>_`` prefix, builder)."""
+UNSUPPORTED = {"fixed_trajectory": "it reads object_trajectories/*.json files of the ROS package"}
+
+
+def build_trajectory(
+    index: int,
+    string_params: Mapping[str, str],
+    float_params: Mapping[str, float],
+    rng: np.random.Generator,
+) -> ObjectTrajectory | None:
+    """Object ``index``'s trajectory from SetState parameters.
+
+    Returns:
+        None when ``object_<index>_function`` is absent (the caller keeps the previous trajectory,
+        like the ROS parameter server keeps the previous parameters).
+
+    Raises:
+        InvalidStateError: unknown or unsupported function, missing or non-finite parameters, or
+            parameters that give an empty trajectory.
+    """
+    prefix = f"object_{index}_"
+    function = string_params.get(prefix + "function")
+    if function is None:
+        return None
+    if function in UNSUPPORTED:
+        raise InvalidStateError(
+            f"{prefix}function {function!r} is not supported: {UNSUPPORTED[function]}"
+        )
+    if function not in FUNCTIONS:
+        raise InvalidStateError(
+            f"unknown {prefix}function {function!r}; known: {', '.join(sorted(FUNCTIONS))}"
+        )
+    names, builder = FUNCTIONS[function]
+    missing = [prefix + n for n in names if prefix + n not in float_params]
+    if missing:
+        raise InvalidStateError(f"{function} for object {index} needs float params {missing}")
+    params = {n: float(float_params[prefix + n]) for n in names}
+    bad = {prefix + n: v for n, v in params.items() if not math.isfinite(v)}
+    if bad:
+        raise InvalidStateError(f"non-finite object parameters: {bad}")
+    samples = np.asarray(builder(params, rng), dtype=np.float64)
+    if samples.ndim != 2 or len(samples) == 0:
+        raise InvalidStateError(f"{function} for object {index} gives no samples with {params}")
+    return ObjectTrajectory(function, samples)
