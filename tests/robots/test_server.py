@@ -208,3 +208,84 @@ def test_serve_cli_rejects_an_unknown_robot() -> None:
         timeout=60,
     )
     assert out.returncode == 2 and "ur99" in out.stderr and "mir100" in out.stderr
+
+
+# -- UR10 through gRPC -------------------------------------------------------------------------
+JOINTS = ("base", "shoulder", "elbow", "wrist_1", "wrist_2", "wrist_3")
+
+
+def ur_reset(stub: pb_grpc.RobotServerStub, q_env: list[float]) -> None:
+    """SetState as robo-gym's EndEffectorPositioning env sends it (27 keys, joint goals)."""
+    keys = {f"{j}_joint_position": q for j, q in zip(JOINTS, q_env, strict=True)}
+    keys.update({f"{j}_joint_velocity": 0.0 for j in JOINTS})
+    keys.update(
+        {
+            f"ee_to_ref_{a}": 0.0
+            for a in (
+                "translation_x",
+                "translation_y",
+                "translation_z",
+                "rotation_x",
+                "rotation_y",
+                "rotation_z",
+                "rotation_w",
+            )
+        }
+    )
+    keys["in_collision"] = 0.0
+    msg = pb.State(
+        state_dict=keys,
+        string_params={"object_0_function": "fixed_position"},
+        float_params={"object_0_x": 0.5, "object_0_y": 0.3, "object_0_z": 0.6},
+    )
+    assert stub.SetState(msg, timeout=10).success
+
+
+def joints_of(msg: pb.State) -> np.ndarray:
+    return np.array([msg.state_dict[f"{j}_joint_position"] for j in JOINTS])
+
+
+@pytest.fixture
+def ur10() -> Iterator[RobotServerHandle]:
+    handle = start_robot_server("ur10", scene="tabletop", seed=0, options={"rs_mode": "1object"})
+    yield handle
+    handle.stop()
+
+
+def test_ur10_set_state_is_read_back(ur10: RobotServerHandle) -> None:
+    stub = stub_for(ur10.address)
+    q = [0.0, -2.5, 1.5, -1.5, -1.4, 0.0]
+    ur_reset(stub, q)
+    msg = stub.GetState(pb.Empty(), timeout=5)
+    assert msg.success and len(msg.state_dict) == 27 and len(msg.state) == 27
+    assert np.allclose(joints_of(msg), q, atol=1e-4)
+    ee = [msg.state_dict[f"ee_to_ref_translation_{a}"] for a in "xyz"]
+    assert np.allclose(ee, (-0.0391, 0.1796, 1.0135), atol=2e-3)  # golden FK value, spec e.2
+    assert msg.state_dict["in_collision"] == 0.0
+
+
+def test_ur10_joint_targets_are_reached_and_limits_hold(ur10: RobotServerHandle) -> None:
+    stub = stub_for(ur10.address)
+    ur_reset(stub, [0.0, -2.5, 1.5, -1.5, -1.4, 0.0])
+    goal_env = np.array([0.6, -2.2, 1.2, -1.2, -1.6, 0.4])
+    ros = [goal_env[2], goal_env[1], goal_env[0], *goal_env[3:]]  # robo-gym sends ROS order
+    for _ in range(150):  # 6 s of sim time at 40 ms per action
+        msg = stub.SendActionGetState(pb.Action(action=ros), timeout=5)
+    assert np.allclose(joints_of(msg), goal_env, atol=0.01)
+    assert msg.state_dict["in_collision"] == 0.0
+    # A target beyond the elbow's +-pi limit (allowed by the wire range check for the other
+    # joints at 2*pi) never drives the joint past its limit.
+    beyond = [3.1415, -2.2, 0.6, -1.2, -1.6, 6.28]
+    for _ in range(300):
+        msg = stub.SendActionGetState(pb.Action(action=beyond), timeout=5)
+        q = joints_of(msg)
+        assert abs(q[2]) <= np.pi + 1e-6 and abs(q[5]) <= 2 * np.pi + 1e-6
+
+
+def test_ur10_out_of_range_action_is_refused(ur10: RobotServerHandle) -> None:
+    stub = stub_for(ur10.address)
+    reply, call = stub.SendActionGetState.with_call(
+        pb.Action(action=[0.0, 0.0, 0.0, 0.0, 0.0, 99.0]), timeout=5
+    )
+    assert not reply.success and "wrist_3" in error_of(call)
+    assert stub.GetState(pb.Empty(), timeout=5).success
