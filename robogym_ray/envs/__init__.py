@@ -1,0 +1,12 @@
+"""Gymnasium environments on robo-gym robot servers (client side of the wire protocol).
+
+Importing this package registers the ids in ``ENV_IDS`` (cheap: no PyBullet, no torch).
+"""
+
+from robogym_ray.envs.registration import register_all
+
+ENV_IDS: tuple[str, ...] = tuple(register_all())
+SIM_ENV_IDS: tuple[str, ...] = tuple(i for i in ENV_IDS if i.endswith("Sim-v0"))
+REAL_ENV_IDS: tuple[str, ...] = tuple(i for i in ENV_IDS if i.endswith("Rob-v0"))
+
+__all__ = ["ENV_IDS", "REAL_ENV_IDS", "SIM_ENV_IDS"]

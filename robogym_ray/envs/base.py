@@ -1,0 +1,247 @@
+"""Base of every robogym-ray environment: a Gymnasium env in front of one robot server.
+
+Sim and Real are one class with a switch, because the two differ in *where the server comes
+from* and *what the env may assume*, not in the task:
+
+* **Sim** (``real_robot=False``): the server comes from a ``ServerProvider`` (default: an
+  in-process robot server started on first reset, so ``gymnasium.make(id)`` needs nothing
+  running; ``rs_address=`` pins one). A ``RobotServerError`` mid-episode is reported to the lease,
+  a new lease is acquired and the episode ends with ``truncated=True`` and
+  ``info["final_status"] == "server_restarted"`` - a restart is invisible otherwise. A failure in
+  ``reset`` is retried once on a fresh lease.
+* **Real** (``real_robot=True``): ``rs_address="host:port"`` of a running robot server is
+  required. Nothing is started or restarted (errors propagate), and tasks skip every check the
+  real robot cannot sense (see each task).
+
+Actions are clipped to the action space; a wrong shape, NaN or inf raises
+``InvalidActionError`` before anything is sent. Observations outside the observation space (NaN
+included) raise ``InvalidStateError`` naming the index, value and bounds, as robo-gym's envs do.
+
+Episodes: the step limit (``max_episode_steps``) ends an episode with ``truncated=True``.
+robo-gym instead reports ``done=True`` (there is no truncation in robo-gym); we truncate so
+that learners bootstrap from the last state. ``info["final_status"]`` is set on the last step.
+"""
+
+from __future__ import annotations
+
+from abc import abstractmethod
+from collections.abc import Mapping
+from typing import Any, ClassVar
+
+import gymnasium as gym
+import numpy as np
+
+from robogym_ray.envs.client import Deadlines, RobotServerClient, check_action
+from robogym_ray.envs.servers import (
+    EmbeddedServerProvider,
+    ServerLease,
+    ServerProvider,
+    StaticServerProvider,
+)
+from robogym_ray.errors import ConfigError, InvalidStateError, RobotServerError
+from robogym_ray.protocol import robot_server_pb2 as pb
+
+SERVER_RESTARTED = "server_restarted"
+MAX_STEPS = "max_steps_exceeded"
+
+StepInfo = dict[str, Any]
+
+
+class RobotServerEnv(gym.Env[np.ndarray, np.ndarray]):
+    """Common Sim/Real machinery; subclasses define the task (see the module docstring).
+
+    Args:
+        real_robot: Real variant (needs ``rs_address``; no server management).
+        rs_address: ``host:port`` of a running robot server (Real: required; Sim: optional).
+        provider: where a Sim env gets servers (default ``EmbeddedServerProvider()``).
+        token: shared token for the server (gRPC metadata ``robogym-token``).
+        deadlines: per-RPC deadlines (default: ``Deadlines.fast()`` for the default embedded
+            server, robo-gym's (spec a.2) for any other server).
+        server_seed: seed of an embedded server's own randomness (default: the first
+            ``reset(seed=...)``).
+        max_steps: step limit (truncation) of this instance; default: the class attribute
+            ``max_episode_steps``. (``gymnasium.make(id, max_episode_steps=N)`` instead wraps
+            the env in gymnasium's ``TimeLimit``, which sets no ``final_status``.)
+    """
+
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": []}
+    max_episode_steps: int = 500
+    limit_status: ClassVar[str] = MAX_STEPS
+    """``final_status`` when the step limit ends an episode."""
+
+    def __init__(
+        self,
+        *,
+        real_robot: bool = False,
+        rs_address: str | None = None,
+        provider: ServerProvider | None = None,
+        token: str | None = None,
+        deadlines: Deadlines | None = None,
+        server_seed: int | None = None,
+        max_steps: int | None = None,
+    ) -> None:
+        if real_robot and not rs_address:
+            raise ConfigError(
+                f"{type(self).__name__}: the Real variant needs rs_address='host:port' of a "
+                "running robot server (it never starts one)"
+            )
+        if real_robot and provider is not None:
+            raise ConfigError(f"{type(self).__name__}: a Real env takes rs_address, not provider")
+        self.real_robot = real_robot
+        if rs_address:
+            provider = StaticServerProvider(rs_address, token)
+        self.provider: ServerProvider = provider or EmbeddedServerProvider()
+        self.token = token
+        if deadlines is None:
+            embedded = isinstance(self.provider, EmbeddedServerProvider)
+            deadlines = Deadlines.fast() if embedded else Deadlines()
+        self.deadlines = deadlines
+        self.server_seed = server_seed
+        if max_steps is not None:
+            self.max_episode_steps = int(max_steps)
+        self.elapsed_steps = 0
+        self.lease: ServerLease | None = None
+        self.client: RobotServerClient | None = None
+        self.restarts = 0
+        self._last_obs: np.ndarray | None = None
+
+    # -- what a task defines ---------------------------------------------------------------
+    @abstractmethod
+    def server_spec(self) -> tuple[str, str | None, dict[str, str]]:
+        """``(robot, scene, options)`` a provider needs to start this task's server."""
+
+    @abstractmethod
+    def _reset_server(self, client: RobotServerClient, options: Mapping[str, Any]) -> pb.State:
+        """Sample the episode (with ``self.np_random``), SetState, and return the first state."""
+
+    @abstractmethod
+    def _send(self, client: RobotServerClient, action: np.ndarray) -> pb.State:
+        """Send one (clipped, finite) action and return the state after it."""
+
+    @abstractmethod
+    def _to_obs(self, msg: pb.State) -> np.ndarray:
+        """Observation (float32) from a state message; may raise InvalidStateError."""
+
+    @abstractmethod
+    def _evaluate(
+        self, msg: pb.State, obs: np.ndarray, action: np.ndarray
+    ) -> tuple[float, str | None, StepInfo]:
+        """``(reward, terminal status or None, info)`` of one step."""
+
+    # -- gymnasium API ---------------------------------------------------------------------
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, StepInfo]:
+        super().reset(seed=seed)
+        if self.server_seed is None and seed is not None:
+            self.server_seed = seed
+        attempts = 1 if self.real_robot else 2
+        for attempt in range(attempts):
+            try:
+                msg = self._reset_server(self._connected(), options or {})
+                break
+            except RobotServerError as exc:
+                if attempt + 1 == attempts:
+                    raise
+                self._replace_server(exc.cause)
+        self.elapsed_steps = 0
+        obs = self.observe(msg)
+        self._last_obs = obs
+        return obs, {"server": self.client.address if self.client else ""}
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, StepInfo]:
+        if self._last_obs is None or self.client is None:
+            raise gym.error.ResetNeeded(f"{type(self).__name__}: call reset() before step()")
+        assert isinstance(self.action_space, gym.spaces.Box)
+        vec = check_action(action, self.action_space.shape[0])
+        vec = np.clip(vec, self.action_space.low, self.action_space.high)
+        try:
+            msg = self._send(self.client, vec)
+        except RobotServerError as exc:
+            if self.real_robot:
+                raise
+            return self._end_after_fault(exc)
+        obs = self.observe(msg)
+        self.elapsed_steps += 1
+        reward, status, info = self._evaluate(msg, obs, vec)
+        terminated = status is not None
+        truncated = not terminated and self.elapsed_steps >= self.max_episode_steps
+        if truncated:
+            status = self.limit_status
+        if status is not None:
+            info["final_status"] = status
+        self._last_obs = obs
+        return obs, float(reward), terminated, truncated, info
+
+    def close(self) -> None:
+        self._disconnect()
+        super().close()
+
+    # -- helpers for tasks -----------------------------------------------------------------
+    def observe(self, msg: pb.State) -> np.ndarray:
+        """``_to_obs`` plus robo-gym's space check (InvalidStateError naming the bad value)."""
+        obs = self._to_obs(msg)
+        space = self.observation_space
+        assert isinstance(space, gym.spaces.Box)
+        if obs.shape != space.shape:
+            raise InvalidStateError(
+                f"observation has shape {obs.shape}, expected {space.shape} ({self._where()})"
+            )
+        bad = np.flatnonzero(~((obs >= space.low) & (obs <= space.high)))
+        if bad.size:
+            i = int(bad[0])
+            low, high = space.low[i], space.high[i]
+            raise InvalidStateError(
+                f"observation[{i}] = {obs[i]:.6g} outside [{low:.6g}, {high:.6g}] "
+                f"({bad.size} bad values; state from {self._where()})"
+            )
+        return obs
+
+    def _where(self) -> str:
+        return f"robot server {self.client.address}" if self.client else "no server"
+
+    # -- server management -----------------------------------------------------------------
+    def _connected(self) -> RobotServerClient:
+        if self.client is None:
+            robot, scene, options = self.server_spec()
+            self.lease = self.provider.acquire(robot, scene, options, self.server_seed)
+            token = getattr(self.lease, "token", None) or self.token
+            self.client = RobotServerClient(
+                self.lease.address, deadlines=self.deadlines, token=token
+            )
+        return self.client
+
+    def _disconnect(self) -> None:
+        if self.client is not None:
+            self.client.close()
+            self.client = None
+        if self.lease is not None:
+            lease, self.lease = self.lease, None
+            lease.release()
+
+    def _replace_server(self, cause: str) -> None:
+        if self.lease is not None:
+            self.lease.report_fault(cause)
+        self._disconnect()
+        self.restarts += 1
+        self._connected()
+
+    def _end_after_fault(
+        self, exc: RobotServerError
+    ) -> tuple[np.ndarray, float, bool, bool, StepInfo]:
+        info: StepInfo = {"final_status": SERVER_RESTARTED, "error": str(exc)}
+        try:
+            self._replace_server(exc.cause)
+        except RobotServerError as again:  # next reset() tries again and raises if it must
+            info["restart_error"] = str(again)
+            self._disconnect()
+        obs = self._last_obs
+        assert obs is not None
+        self._last_obs = None  # the episode is over: step() needs a reset first
+        return obs, 0.0, False, True, info
+
+
+def polar_2d(dx: float, dy: float, yaw: float) -> tuple[float, float]:
+    """Distance and bearing (wrapped to [-pi, pi)) of ``(dx, dy)`` seen from heading ``yaw``."""
+    angle = np.arctan2(dy, dx) - yaw
+    return float(np.hypot(dx, dy)), float((angle + np.pi) % (2 * np.pi) - np.pi)

@@ -1,0 +1,65 @@
+"""Gymnasium ids ``RoboGymRay/<Task><Robot><Sim|Rob>-v0``, registered in a loop from one table.
+
+Registration imports nothing heavy: entry points are strings, resolved by ``gymnasium.make``.
+``Sim`` ids get a simulated robot server (embedded by default, see ``envs.servers``); ``Rob``
+ids need ``rs_address="host:port"`` of a running robot server (real robot or emulation):
+``gymnasium.make("RoboGymRay/ObstacleAvoidanceMir100Rob-v0", rs_address="10.0.0.5:50051")``.
+
+No ``max_episode_steps`` is registered: each env truncates itself (so ``final_status`` is set)
+at its own ``max_episode_steps``, which is also an env kwarg.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+
+_MIR = "robogym_ray.envs.mir100_tasks:"
+_UR = "robogym_ray.envs.ur_tasks:"
+_URA = "robogym_ray.envs.ur_avoidance:"
+
+TASKS: tuple[tuple[str, str, tuple[str, ...]], ...] = (
+    # (task name, entry point, robots: "Mir100" or UR model ids)
+    ("NoObstacleNavigation", _MIR + "NoObstacleNavigationMir100", ("Mir100",)),
+    ("ObstacleAvoidance", _MIR + "ObstacleAvoidanceMir100", ("Mir100",)),
+    # Problem 2 of the paper (15 obs / 6 actions); the UR10 is the paper's robot.
+    ("EndEffectorPositioning", _UR + "EndEffectorPositioningUR", ("UR3", "UR5", "UR10", "UR16e")),
+    # robo-gym 2.0.1's EndEffectorPositioningURSim-v0 (27 obs / 5 actions).
+    ("EndEffectorPositioningRoboGym", _UR + "EndEffectorPositioningRoboGymUR", ("UR5", "UR10")),
+    ("EmptyEnvironment", _UR + "EmptyEnvironmentUR", ("UR5", "UR10")),
+    # Avoidance tasks: object trajectories and reset poses are laid out for the UR5 workspace.
+    ("BasicAvoidance", _URA + "BasicAvoidanceUR", ("UR5",)),
+    ("AvoidanceRaad2022", _URA + "AvoidanceRaad2022UR", ("UR5",)),
+)
+NONDETERMINISTIC = frozenset({"AvoidanceRaad2022"})
+"""Tasks whose reset is not a function of the env seed alone: the sphere's spline is drawn by the
+robot server's own RNG (spec c.2.4), so a second ``reset(seed=s)`` on the same server differs.
+(A fresh embedded server is seeded from the first reset's seed, so fresh envs still agree.)"""
+VARIANTS = {"Sim": False, "Rob": True}
+"""Id suffix -> ``real_robot``."""
+
+
+def env_id(task: str, robot: str, variant: str) -> str:
+    return f"RoboGymRay/{task}{robot}{variant}-v0"
+
+
+def register_all() -> list[str]:
+    """Register every id (idempotent); returns them in table order."""
+    ids = []
+    for task, entry_point, robots in TASKS:
+        for robot in robots:
+            for variant, real in VARIANTS.items():
+                kwargs: dict[str, Any] = {"real_robot": real}
+                if robot != "Mir100":
+                    kwargs["ur_model"] = robot.lower()
+                name = env_id(task, robot, variant)
+                if name not in gym.registry:
+                    gym.register(
+                        id=name,
+                        entry_point=entry_point,
+                        kwargs=kwargs,
+                        nondeterministic=task in NONDETERMINISTIC,
+                    )
+                ids.append(name)
+    return ids

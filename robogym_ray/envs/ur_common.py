@@ -1,0 +1,230 @@
+"""Shared machinery of the UR tasks: key sets, joint order and scaling, SetState, stepping.
+
+Joint vectors are in *env order* ``[base (shoulder_pan), shoulder (lift), elbow, wrist_1,
+wrist_2, wrist_3]`` everywhere in the envs; they are swapped to ROS order (indices 0 and 2) only
+on the wire (spec c.2.2). The server's ``state_dict`` is read by name.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+from gymnasium import spaces
+from scipy.spatial.transform import Rotation
+
+from robogym_ray.envs.base import RobotServerEnv
+from robogym_ray.envs.client import RobotServerClient
+from robogym_ray.errors import ConfigError, InvalidStateError
+from robogym_ray.protocol import robot_server_pb2 as pb
+
+JOINTS = ("base", "shoulder", "elbow", "wrist_1", "wrist_2", "wrist_3")
+POSITION_KEYS = tuple(f"{j}_joint_position" for j in JOINTS)
+VELOCITY_KEYS = tuple(f"{j}_joint_velocity" for j in JOINTS)
+JOINT_MAX = np.array([2 * np.pi, 2 * np.pi, np.pi, 2 * np.pi, 2 * np.pi, 2 * np.pi])
+"""Position limits (rad, symmetric), env order; identical for all seven models (spec e.2)."""
+RESET_TOLERANCE = 0.05
+"""rad: a reset fails if any joint is farther than this from the request (robo-gym's check)."""
+
+
+def _pose_keys(prefix: str) -> tuple[str, ...]:
+    return tuple(f"{prefix}_to_ref_translation_{a}" for a in "xyz") + tuple(
+        f"{prefix}_to_ref_rotation_{a}" for a in "xyzw"
+    )
+
+
+_ROBOT_KEYS = (*POSITION_KEYS, *VELOCITY_KEYS, *_pose_keys("ee"), "in_collision")
+KEYS: dict[str, frozenset[str]] = {
+    "only_robot": frozenset(_ROBOT_KEYS),
+    "1object": frozenset(_ROBOT_KEYS + _pose_keys("object_0")),
+    "1moving2points": frozenset(_ROBOT_KEYS + _pose_keys("object_0") + _pose_keys("forearm")),
+}
+"""The exact ``state_dict`` key set of each rs_mode (spec c.2.1)."""
+
+
+@dataclass(frozen=True)
+class URModel:
+    """Task-side facts about one UR model (spec e.2)."""
+
+    r: float
+    """robo-gym's target half-ball radius (m)."""
+    min_r: float
+    """Targets closer than this to the base z axis are discarded (shoulder singularity)."""
+    d1: float
+    """Shoulder height above base_link (m)."""
+    reach: float
+    """``|a2| + |a3| + d5`` (m): the stretched-arm distance from the shoulder to the wrist."""
+
+
+UR_TASK_MODELS: dict[str, URModel] = {
+    "ur3": URModel(0.45, 0.2, 0.1519, 0.24365 + 0.21325 + 0.08535),
+    "ur3e": URModel(0.45, 0.2, 0.152, 0.244 + 0.213 + 0.085),
+    "ur5": URModel(0.75, 0.2, 0.089159, 0.425 + 0.39225 + 0.09465),
+    "ur5e": URModel(0.75, 0.2, 0.163, 0.425 + 0.39225 + 0.100),
+    "ur10": URModel(1.3, 0.3, 0.1273, 0.612 + 0.5723 + 0.1157),
+    "ur10e": URModel(1.3, 0.3, 0.181, 0.613 + 0.571 + 0.120),
+    "ur16e": URModel(0.8, 0.3, 0.1807, 0.4784 + 0.36 + 0.11985),
+}
+
+
+def normalize_joints(q: np.ndarray) -> np.ndarray:
+    """robo-gym's normalisation q/|min| (q <= 0) or q/max; the limits are symmetric."""
+    return np.asarray(q, dtype=np.float64) / JOINT_MAX
+
+
+def to_ros(q_env: np.ndarray) -> np.ndarray:
+    """Env -> ROS order ``[elbow, shoulder_lift, shoulder_pan, wrist_1, wrist_2, wrist_3]``."""
+    return np.asarray(q_env)[[2, 1, 0, 3, 4, 5]]
+
+
+def frame_xyz(sd: Mapping[str, float], prefix: str) -> np.ndarray:
+    return np.array([sd[f"{prefix}_to_ref_translation_{a}"] for a in "xyz"], dtype=np.float64)
+
+
+def frame_rotation(sd: Mapping[str, float], prefix: str) -> Rotation:
+    quat = np.array([sd[f"{prefix}_to_ref_rotation_{a}"] for a in "xyzw"], dtype=np.float64)
+    if not np.all(np.isfinite(quat)) or np.linalg.norm(quat) < 1e-6:
+        raise InvalidStateError(f"{prefix} rotation quaternion {quat.tolist()} is not valid")
+    return Rotation.from_quat(quat)
+
+
+def spherical(v: np.ndarray) -> np.ndarray:
+    """``[r, theta = arccos(z / r), phi = atan2(y, x)]`` (theta = 0 at r = 0)."""
+    r = float(np.linalg.norm(v))
+    theta = float(np.arccos(np.clip(v[2] / r, -1.0, 1.0))) if r > 0 else 0.0
+    return np.array([r, theta, np.arctan2(v[1], v[0])])
+
+
+def in_frame(sd: Mapping[str, float], point: np.ndarray, prefix: str) -> np.ndarray:
+    """``point`` (reference frame) expressed in frame ``prefix`` (ee, forearm)."""
+    return frame_rotation(sd, prefix).inv().apply(point - frame_xyz(sd, prefix))
+
+
+class URTask(RobotServerEnv):
+    """A task on a UR arm. Subclasses set the class attributes and the task methods.
+
+    Args:
+        ur_model: ur3, ur3e, ur5, ur5e, ur10, ur10e or ur16e.
+        fixed_joints: env-order joint names the agent does not move (e.g. ``("wrist_3",)``);
+            each removes one action dimension. Default: the class's ``default_fixed``.
+        **kwargs: see ``RobotServerEnv``.
+    """
+
+    rs_mode: ClassVar[str] = "only_robot"
+    scene: ClassVar[str] = "empty"
+    velocity_scale: ClassVar[float] = 0.2
+    action_rate: ClassVar[float] = 20.0
+    default_fixed: ClassVar[tuple[str, ...]] = ("wrist_3",)
+    reset_joints: ClassVar[tuple[float, ...]] = (0.0, -2.5, 1.5, 0.0, -1.4, 0.0)
+
+    def __init__(
+        self, *, ur_model: str = "ur5", fixed_joints: Sequence[str] | None = None, **kwargs: Any
+    ) -> None:
+        super().__init__(**kwargs)
+        if ur_model not in UR_TASK_MODELS:
+            raise ConfigError(
+                f"unknown ur_model {ur_model!r}; choose from {sorted(UR_TASK_MODELS)}"
+            )
+        self.ur_model = ur_model
+        self.model = UR_TASK_MODELS[ur_model]
+        fixed = tuple(self.default_fixed if fixed_joints is None else fixed_joints)
+        unknown = set(fixed) - set(JOINTS)
+        if unknown:
+            raise ConfigError(f"fixed_joints {sorted(unknown)} unknown; joints are {JOINTS}")
+        self.active = np.array([j not in fixed for j in JOINTS])
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(int(self.active.sum()),), dtype=np.float32)
+        self.keys = KEYS[self.rs_mode]
+        self.start_joints = np.array(self.reset_joints)
+        self.last_rs_state: dict[str, float] = {}
+
+    def server_spec(self) -> tuple[str, str | None, dict[str, str]]:
+        options = {
+            "rs_mode": self.rs_mode,
+            "reference_frame": "base_link",
+            "max_velocity_scale_factor": str(self.velocity_scale),
+            "action_cycle_rate": str(int(self.action_rate)),
+        }
+        if self.rs_mode != "only_robot":
+            options.update(objects_controller="true", n_objects="1.0", object_0_frame="target")
+        return self.ur_model, self.scene, options
+
+    # -- wire ------------------------------------------------------------------------------
+    def set_joints(
+        self,
+        client: RobotServerClient,
+        joints: np.ndarray,
+        string_params: Mapping[str, str] | None = None,
+        float_params: Mapping[str, float] | None = None,
+    ) -> pb.State:
+        """robo-gym's UR SetState (all keys 0 but the joint goal), then GetState and checks."""
+        state_dict = dict.fromkeys(self.keys, 0.0)
+        state_dict.update(zip(POSITION_KEYS, (float(q) for q in joints), strict=True))
+        client.set_state(
+            pb.State(
+                state_dict=state_dict,
+                string_params=dict(string_params or {}),
+                float_params={k: float(v) for k, v in (float_params or {}).items()},
+            )
+        )
+        msg = self.checked(client.get_state())
+        reached = self.joints(msg)
+        off = np.abs(reached - joints)
+        if np.any(off > RESET_TOLERANCE):
+            i = int(np.argmax(off))
+            raise InvalidStateError(
+                f"reset joint positions not within {RESET_TOLERANCE} rad of the request: "
+                f"{JOINTS[i]} at {reached[i]:.4f}, asked {joints[i]:.4f} ({self._where()})"
+            )
+        self.start_joints = np.asarray(joints, dtype=np.float64)
+        return msg
+
+    def send_joint_targets(self, client: RobotServerClient, q_env: np.ndarray) -> pb.State:
+        """Absolute joint targets (rad, env order) through SendActionGetState (ROS order)."""
+        return self.checked(client.send_action_get_state(to_ros(q_env)))
+
+    def checked(self, msg: pb.State) -> pb.State:
+        keys = set(msg.state_dict)
+        if keys != self.keys:
+            missing, extra = sorted(self.keys - keys), sorted(keys - self.keys)
+            raise InvalidStateError(
+                f"robot server state keys do not match rs_mode {self.rs_mode!r}: "
+                f"missing {missing[:5]}{'...' if len(missing) > 5 else ''}, extra {extra[:5]} "
+                f"({len(keys)} keys, expected {len(self.keys)}; {self._where()})"
+            )
+        self.last_rs_state = dict(msg.state_dict)
+        return msg
+
+    # -- reading a state -------------------------------------------------------------------
+    @staticmethod
+    def joints(msg: pb.State) -> np.ndarray:
+        return np.array([msg.state_dict[k] for k in POSITION_KEYS], dtype=np.float64)
+
+    @staticmethod
+    def velocities(msg: pb.State) -> np.ndarray:
+        return np.array([msg.state_dict[k] for k in VELOCITY_KEYS], dtype=np.float64)
+
+    def collided(self, msg: pb.State) -> bool:
+        """Self/ground/object contact. Real robots report no collisions (spec e.2): always False."""
+        return not self.real_robot and msg.state_dict["in_collision"] >= 0.5
+
+    def full_action(self, action: np.ndarray, fill: np.ndarray) -> np.ndarray:
+        """Six values in env order: ``action`` on the active joints, ``fill`` on the fixed ones."""
+        full = np.array(fill, dtype=np.float64)
+        full[self.active] = action
+        return full
+
+    def random_start(self, spread: Sequence[float]) -> np.ndarray:
+        """``reset_joints`` plus U(-spread, spread) per joint (robo-gym's ``randomize_start``)."""
+        spread_arr = np.asarray(spread, dtype=np.float64)
+        return np.array(self.reset_joints) + self.np_random.uniform(-spread_arr, spread_arr)
+
+
+def joint_obs_bounds(n_norm: int, n_vel: int) -> tuple[list[float], list[float]]:
+    """Bounds of ``n_norm`` normalised positions (+-1.1) then ``n_vel`` velocities (free)."""
+    return [-1.1] * n_norm + [-np.inf] * n_vel, [1.1] * n_norm + [np.inf] * n_vel
+
+
+def box(low: Sequence[float], high: Sequence[float]) -> spaces.Box:
+    return spaces.Box(np.array(low, np.float32), np.array(high, np.float32), dtype=np.float32)
