@@ -58,9 +58,7 @@ def parse_launch_cmd(cmd: str) -> LaunchSpec:
     """
     tokens = cmd.split()
     if len(tokens) < 3 or tokens[0] != "roslaunch":
-        raise ConfigError(
-            f"cmd {cmd!r} is not 'roslaunch <package> <launch file> name:=value ...'"
-        )
+        raise ConfigError(f"cmd {cmd!r} is not 'roslaunch <package> <launch file> name:=value ...'")
     family = _LAUNCH_FILES.get(tokens[2])
     if family is None:
         raise UnknownRobotError(

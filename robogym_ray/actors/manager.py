@@ -61,8 +61,9 @@ def run(args: argparse.Namespace) -> int:
         supervisor = start_supervisor(sup_cfg, manager_host=cfg.host, manager_port=cfg.port)
     except Exception as exc:  # noqa: BLE001 - the actor's constructor failed (port taken ...)
         ray.shutdown()
-        raise ConfigError(f"could not start the server manager on {cfg.host}:{cfg.port}: "
-                          f"{exc}") from None
+        raise ConfigError(
+            f"could not start the server manager on {cfg.host}:{cfg.port}: {exc}"
+        ) from None
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())

@@ -57,15 +57,19 @@ class ServerManagerService(sm_grpc.ServerManagerServicer):
             return sm.RobotServer(success=False, info=f"{type(exc).__name__}: {exc}")
         log.info("StartNewServer: %s on port %d (gui ignored)", launch.robot, info["port"])
         return sm.RobotServer(
-            cmd=request.cmd, port=info["port"], success=True,
+            cmd=request.cmd,
+            port=info["port"],
+            success=True,
             info=f"{launch.robot} at {info['address']}, id {info['id']}",
         )
 
     def KillServer(self, request: sm.RobotServer, context: Any) -> sm.RobotServer:  # noqa: N802
         # Idempotent: robo-gym kills from __del__ too, so double and unknown kills are normal.
         killed = self.supervisor.kill_port(request.port)
-        info = f"stopped the server on port {request.port}" if killed else (
-            f"no server on port {request.port} (already stopped?)"
+        info = (
+            f"stopped the server on port {request.port}"
+            if killed
+            else (f"no server on port {request.port} (already stopped?)")
         )
         return sm.RobotServer(port=request.port, success=True, info=info)
 

@@ -37,9 +37,7 @@ class SupervisorLease:
 
     def report_fault(self, cause: str) -> None:
         self.faults.append(cause)
-        info = ray.get(
-            self.supervisor.report_fault.remote(self.server_id, cause, self.generation)
-        )
+        info = ray.get(self.supervisor.report_fault.remote(self.server_id, cause, self.generation))
         if info["state"] == "given_up":
             raise RobotServerError(info["message"], address=self.address, cause="given_up")
         log.warning("robot server %s (%s) restarted at %s", self.server_id, cause, info["address"])
@@ -58,11 +56,13 @@ class SupervisorServerProvider:
         name: the supervisor actor's name (namespace ``robogym-ray``).
         host: interface the servers bind (``auto``: loopback on one node, node IP on a cluster).
         real_time: pace servers against the wall clock.
+        resources: custom Ray resources a server needs (places it on the nodes that have them).
     """
 
     name: str = SUPERVISOR_NAME
     host: str = "auto"
     real_time: bool = False
+    resources: tuple[tuple[str, float], ...] = ()
 
     def acquire(
         self, robot: str, scene: str | None, options: Mapping[str, str], seed: int | None
@@ -70,8 +70,15 @@ class SupervisorServerProvider:
         supervisor = get_supervisor(self.name)
         if supervisor is None:
             raise RobotServerError(f"no supervisor actor {self.name!r} is running", cause="start")
-        spec = ServerSpec(robot=robot, scene=scene, options=dict(options), seed=seed,
-                          host=self.host, real_time=self.real_time)
+        spec = ServerSpec(
+            robot=robot,
+            scene=scene,
+            options=dict(options),
+            seed=seed,
+            host=self.host,
+            real_time=self.real_time,
+            resources=dict(self.resources),
+        )
         info = ray.get(supervisor.acquire.remote(spec))
         return SupervisorLease(supervisor, info["id"], info["address"], info["generation"])
 

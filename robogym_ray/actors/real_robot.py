@@ -28,8 +28,10 @@ log = logging.getLogger(__name__)
 
 def state_to_dict(msg: pb.State) -> dict[str, Any]:
     return {
-        "state": list(msg.state), "state_dict": dict(msg.state_dict),
-        "float_params": dict(msg.float_params), "string_params": dict(msg.string_params),
+        "state": list(msg.state),
+        "state_dict": dict(msg.state_dict),
+        "float_params": dict(msg.float_params),
+        "string_params": dict(msg.string_params),
     }
 
 
@@ -84,8 +86,10 @@ class RealRobot:
         string_params: Mapping[str, str] | None = None,
     ) -> None:
         msg = pb.State(
-            state=list(state), state_dict=dict(state_dict or {}),
-            float_params=dict(float_params or {}), string_params=dict(string_params or {}),
+            state=list(state),
+            state_dict=dict(state_dict or {}),
+            float_params=dict(float_params or {}),
+            string_params=dict(string_params or {}),
         )
         self._guarded("SetState", self.client.set_state, msg)
         self.safety.reset()
@@ -131,7 +135,8 @@ class RealRobot:
                     if time.monotonic() >= end:
                         raise RobotPausedError(
                             f"robot {self.name!r} stays paused: health check failed: {exc}",
-                            address=self.address, cause="paused",
+                            address=self.address,
+                            cause="paused",
                         ) from None
                     time.sleep(0.2)
             self.paused, self.pause_reason = False, ""
@@ -141,9 +146,14 @@ class RealRobot:
 
     def status(self) -> dict[str, Any]:
         return {
-            "name": self.name, "address": self.address, "paused": self.paused,
-            "reason": self.pause_reason, "paused_at": self.paused_at, "pauses": self.pauses,
-            "clipped": self.safety.clipped, "refused": self.safety.refused,
+            "name": self.name,
+            "address": self.address,
+            "paused": self.paused,
+            "reason": self.pause_reason,
+            "paused_at": self.paused_at,
+            "pauses": self.pauses,
+            "clipped": self.safety.clipped,
+            "refused": self.safety.refused,
         }
 
     def close(self) -> None:
@@ -156,7 +166,8 @@ class RealRobot:
                 raise RobotPausedError(
                     f"robot {self.name!r} is paused ({self.pause_reason}); {rpc} not sent; "
                     f"an operator must run `robogym-ray resume {self.name}`",
-                    address=self.address, cause="paused",
+                    address=self.address,
+                    cause="paused",
                 )
             try:
                 return call(*args)

@@ -12,18 +12,26 @@ Ray mechanisms used, and why:
   from any driver (``SupervisorServerProvider``, ``robogym-ray resume NAME``).
 * **Real-robot actors have ``max_restarts=0``** and are never restarted by anything.
 * Fractional ``num_cpus`` everywhere: these actors mostly wait on sockets.
+* **The learner actor has ``max_restarts``**: Ray re-runs its constructor after a crash, which
+  restores the latest checkpoint (``LearnerService``), so training resumes where it was.
+* Weights travel through the object store: the driver passes the ObjectRef of the learner's
+  ``get_weights()`` result to the workers; Ray resolves it once per node.
 """
 
 from __future__ import annotations
 
+import os
 import time
 from typing import Any
 
 import ray
 from ray.exceptions import GetTimeoutError, RayActorError
 
+from robogym_ray.actors.evaluator import Evaluator
+from robogym_ray.actors.learner_service import LearnerService
 from robogym_ray.actors.manager_service import serve_manager
 from robogym_ray.actors.real_robot import RealRobot
+from robogym_ray.actors.rollout import RolloutWorker
 from robogym_ray.actors.safety import SafetyConfig
 from robogym_ray.actors.server_host import RobotServerHost, ServerSpec
 from robogym_ray.actors.supervisor import SpawnedServer, Supervisor, SupervisorConfig
@@ -164,3 +172,26 @@ def get_supervisor(name: str = SUPERVISOR_NAME) -> Any | None:
         return ray.get_actor(name, namespace=NAMESPACE)
     except ValueError:
         return None
+
+
+# -- the training program ------------------------------------------------------------------------
+class _Rollout(RolloutWorker):
+    def set_weights(self, weights_and_version: tuple[dict, int]) -> None:  # type: ignore[override]
+        weights, version = weights_and_version
+        super().set_weights(weights, version)
+
+    def pid(self) -> int:
+        return os.getpid()
+
+
+class _Evaluator(Evaluator):
+    def evaluate(  # type: ignore[override]
+        self, weights_and_version: tuple[dict, int], episodes: int = 1
+    ) -> dict:
+        weights, version = weights_and_version
+        return super().evaluate(weights, version, episodes)
+
+
+RolloutActor = ray.remote(_Rollout)
+LearnerActor = ray.remote(LearnerService)
+EvaluatorActor = ray.remote(_Evaluator)

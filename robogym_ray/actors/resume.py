@@ -25,8 +25,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         robot = get_real_robot(args.name)
     except ValueError:
-        print(f"error: no real robot named {args.name!r} in namespace {NAMESPACE}",
-              file=sys.stderr)
+        print(f"error: no real robot named {args.name!r} in namespace {NAMESPACE}", file=sys.stderr)
         return 2
     method = robot.status if args.status else robot.resume
     try:

@@ -46,8 +46,9 @@ class SafetyConfig:
         ):
             raise ValueError(f"SafetyConfig: low {self.low} / high {self.high} do not pair up")
         if self.max_step is not None and len(self.max_step) != len(self.low):
-            raise ValueError(f"SafetyConfig: max_step has {len(self.max_step)} entries, "
-                             f"expected {len(self.low)}")
+            raise ValueError(
+                f"SafetyConfig: max_step has {len(self.max_step)} entries, expected {len(self.low)}"
+            )
         if self.on_violation not in ("clip", "refuse"):
             raise ValueError(f"on_violation must be 'clip' or 'refuse', got {self.on_violation!r}")
 

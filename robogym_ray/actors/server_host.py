@@ -126,7 +126,10 @@ class RobotServerHost:
     def _start(self, spec: ServerSpec) -> RobotServerHandle:
         host = self.bind_host(spec.host)
         kwargs = dict(
-            scene=spec.scene, seed=spec.seed, options=spec.options, host=host,
+            scene=spec.scene,
+            seed=spec.seed,
+            options=spec.options,
+            host=host,
             real_time=spec.real_time,
         )
         try:

@@ -108,11 +108,19 @@ class ManagedServer:
     def info(self) -> dict[str, Any]:
         s = self.server
         return {
-            "id": self.id, "robot": self.spec.robot, "scene": self.spec.scene,
-            "owner": self.owner, "state": self.state, "generation": self.generation,
-            "address": s.address if s else "", "port": s.port if s else 0,
-            "pid": s.pid if s else 0, "leased": self.leased, "message": self.message,
-            "restarts": dict(self.book.counts), "recoveries": list(self.recoveries),
+            "id": self.id,
+            "robot": self.spec.robot,
+            "scene": self.spec.scene,
+            "owner": self.owner,
+            "state": self.state,
+            "generation": self.generation,
+            "address": s.address if s else "",
+            "port": s.port if s else 0,
+            "pid": s.pid if s else 0,
+            "leased": self.leased,
+            "message": self.message,
+            "restarts": dict(self.book.counts),
+            "recoveries": list(self.recoveries),
         }
 
 
@@ -163,8 +171,12 @@ class Supervisor:
         """Lease an idle running server made for the same spec, or start a new one."""
         with self._table_lock:
             for entry in self._servers.values():
-                if (entry.owner == "lease" and not entry.leased and entry.state == "running"
-                        and entry.spec.key() == spec.key()):
+                if (
+                    entry.owner == "lease"
+                    and not entry.leased
+                    and entry.state == "running"
+                    and entry.spec.key() == spec.key()
+                ):
                     entry.leased = True
                     return entry.info()
         return self.start_server(spec, owner="lease")
@@ -256,8 +268,9 @@ class Supervisor:
             server = self.spawner.spawn(spec)
         except Exception as exc:  # noqa: BLE001 - any start failure is a failed start
             raise _StartFailed(FaultCause.CONNECTION, f"{type(exc).__name__}: {exc}") from None
-        health = wait_ready(server.address, cfg.start_timeout_s, cfg.probe_deadline_s,
-                            cfg.state_limit)
+        health = wait_ready(
+            server.address, cfg.start_timeout_s, cfg.probe_deadline_s, cfg.state_limit
+        )
         if health.fault is not None:
             self._kill_quietly(server)
             raise _StartFailed(health.fault, health.detail)

@@ -44,10 +44,14 @@ class TrainConfig:
     """Learner steps between checkpoints (a restarted learner resumes from the latest)."""
     evaluator: bool = True
     """Run an evaluator actor with the greedy policy on its own env."""
-    worker_cpus: float = 0.4
-    """Ray CPUs reserved per rollout worker (fractional: robot servers are light)."""
+    worker_cpus: float = 0.25
+    """Ray CPUs reserved per rollout worker (fractional: they mostly wait on their server)."""
     learner_cpus: float = 0.5
     """Ray CPUs reserved for the learner."""
+    server_cpus: float = 0.2
+    """Ray CPUs reserved per supervised robot server (one per sim worker, one for the evaluator)."""
+    evaluator_cpus: float = 0.1
+    """Ray CPUs reserved for the evaluator."""
     learner_gpus: float = -1.0
     """GPUs for the learner: -1 = one if the cluster has any, else 0."""
     server_resource: str | None = None
@@ -56,6 +60,17 @@ class TrainConfig:
     """Seconds between TensorBoard writes of rates and counters."""
     progress: bool = True
     """Show a progress bar in the terminal."""
+
+    def cpu_demand(self) -> float:
+        """Ray CPUs the run reserves (the supervisor's own 0.05 included)."""
+        servers = self.workers + (1 if self.evaluator else 0)
+        return (
+            self.learner_cpus
+            + (self.workers + len(self.real_robot)) * self.worker_cpus
+            + servers * self.server_cpus
+            + (self.evaluator_cpus if self.evaluator else 0.0)
+            + 0.05
+        )
 
     def __post_init__(self) -> None:
         checks = [

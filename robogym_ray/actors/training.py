@@ -23,11 +23,13 @@ import numpy as np
 import ray
 from ray.exceptions import RayActorError
 
-from robogym_ray.actors import training_remote as remote
+from robogym_ray.actors import remote
+from robogym_ray.actors import training_setup as setup
 from robogym_ray.actors.evaluator import status_rates
 from robogym_ray.actors.rollout import RolloutResult, box_dims, make_gym_env
 from robogym_ray.actors.tasks import TaskPreset, d4pg_for, resolve_task
 from robogym_ray.actors.train_config import TrainConfig
+from robogym_ray.errors import ConfigError
 from robogym_ray.learner.config import D4PGConfig
 
 log = logging.getLogger(__name__)
@@ -71,6 +73,18 @@ def real_env_id(env_id: str) -> str:
     raise ValueError(f"{env_id} has no real-robot variant")
 
 
+def check_resources(cfg: TrainConfig) -> None:
+    """Fail fast when the actors cannot all be scheduled (they would wait forever otherwise)."""
+    available = ray.cluster_resources().get("CPU", 0.0)
+    demand = cfg.cpu_demand()
+    if demand > available + 1e-9:
+        raise ConfigError(
+            f"the run reserves {demand:.2f} Ray CPUs but the cluster has {available:g}: lower "
+            f"--workers ({cfg.workers}), --worker-cpus ({cfg.worker_cpus}), --server-cpus "
+            f"({cfg.server_cpus}) or --learner-cpus ({cfg.learner_cpus}), or add nodes"
+        )
+
+
 class TrainingRun:
     """Owns the actors of one run; ``run()`` drives it to ``total_steps``."""
 
@@ -81,13 +95,14 @@ class TrainingRun:
         )
         self.run_dir.mkdir(parents=True, exist_ok=True)
         self.stats = RunStats()
-        self.supervisor = remote.start_supervisor(cfg, preset.env_id)
+        check_resources(cfg)
+        self.supervision = setup.start_supervision(cfg, preset.env_id, self.run_dir.name)
         probe = make_gym_env(preset.env_id, self._env_kwargs(0, probe=True))()
         self.obs_dim, self.act_dim = box_dims(probe)
         probe.close()
         self.learner = remote.LearnerActor.options(
             num_cpus=cfg.learner_cpus,
-            num_gpus=remote.learner_gpus(cfg),
+            num_gpus=setup.learner_gpus(cfg),
             max_restarts=3,
             max_task_retries=0,
         ).remote(
@@ -101,14 +116,20 @@ class TrainingRun:
         self.workers = self._start_workers()
         self.evaluator = None
         if cfg.evaluator:
-            self.evaluator = remote.EvaluatorActor.options(num_cpus=0.2).remote(
+            self.evaluator = remote.EvaluatorActor.options(num_cpus=cfg.evaluator_cpus).remote(
                 make_gym_env(preset.env_id, self._env_kwargs(10_000)), d4pg, seed=cfg.seed + 10_000
             )
         self.weights_ref = self.learner.get_weights.remote()
         self.version = 0
 
     def _env_kwargs(self, index: int, probe: bool = False) -> dict[str, Any]:
-        return remote.env_kwargs_for(self.supervisor, self.preset.env_id, index, probe=probe)
+        """Sim envs lease their servers from the supervisor (the probe env never resets)."""
+        if self.supervision is None or probe:
+            return {}
+        return {"provider": self.supervision.provider()}
+
+    def restart_counts(self) -> dict[str, int]:
+        return {} if self.supervision is None else self.supervision.restart_counts()
 
     def _start_workers(self) -> list[WorkerSlot]:
         cfg = self.cfg
@@ -238,7 +259,7 @@ class TrainingRun:
                 "faults/worker_failures": float(s.worker_failures),
             }
         )
-        for cause, count in remote.restart_counts(self.supervisor).items():
+        for cause, count in self.restart_counts().items():
             out[f"restarts/{cause}"] = float(count)
         return out
 
@@ -255,7 +276,7 @@ class TrainingRun:
             "wall_s": round(wall, 2),
             "learner_steps": int(scalars["learner/steps"]),
             "checkpoint": checkpoint,
-            "restarts": remote.restart_counts(self.supervisor),
+            "restarts": self.restart_counts(),
             "final_status_counts": dict(Counter(self.stats.statuses)),
             "logdir": str(self.run_dir),
             **{k: round(v, 4) for k, v in scalars.items()},
@@ -269,14 +290,15 @@ class TrainingRun:
         for actor in (self.evaluator, self.learner):
             if actor is not None:
                 ray.kill(actor)
-        remote.stop_supervisor(self.supervisor)
+        if self.supervision is not None:
+            self.supervision.stop()
 
 
 def run_training(cfg: TrainConfig, d4pg_overrides: Mapping[str, Any] | None = None) -> dict:
     """Run one training to completion; returns the summary (also in ``run_dir/summary.json``)."""
     preset = resolve_task(cfg.task)
     d4pg = d4pg_for(preset, d4pg_overrides)
-    started_ray = remote.ensure_ray(cfg)
+    started_ray = setup.ensure_ray(cfg)
     run = TrainingRun(cfg, d4pg, preset)
     try:
         (run.run_dir / "config.json").write_text(

@@ -33,10 +33,10 @@ import numpy as np
 
 from robogym_ray.envs.client import Deadlines, RobotServerClient, check_action
 from robogym_ray.envs.servers import (
-    EmbeddedServerProvider,
     ServerLease,
     ServerProvider,
     StaticServerProvider,
+    default_provider,
 )
 from robogym_ray.errors import ConfigError, InvalidStateError, RobotServerError
 from robogym_ray.protocol import robot_server_pb2 as pb
@@ -53,7 +53,8 @@ class RobotServerEnv(gym.Env[np.ndarray, np.ndarray]):
     Args:
         real_robot: Real variant (needs ``rs_address``; no server management).
         rs_address: ``host:port`` of a running robot server (Real: required; Sim: optional).
-        provider: where a Sim env gets servers (default ``EmbeddedServerProvider()``).
+        provider: where a Sim env gets servers (default: the supervisor when one runs in this
+            Ray session, else ``EmbeddedServerProvider()``).
         token: shared token for the server (gRPC metadata ``robogym-token``).
         deadlines: per-RPC deadlines (default: ``Deadlines.fast()`` for the default embedded
             server, robo-gym's (spec a.2) for any other server).
@@ -90,11 +91,14 @@ class RobotServerEnv(gym.Env[np.ndarray, np.ndarray]):
         self.real_robot = real_robot
         if rs_address:
             provider = StaticServerProvider(rs_address, token)
-        self.provider: ServerProvider = provider or EmbeddedServerProvider()
+        self.provider: ServerProvider = provider or default_provider()
         self.token = token
         if deadlines is None:
-            embedded = isinstance(self.provider, EmbeddedServerProvider)
-            deadlines = Deadlines.fast() if embedded else Deadlines()
+            # Our own simulations (embedded or supervised) answer in milliseconds: short
+            # deadlines turn a hung server into a restart quickly. A fixed address may be a
+            # real robot or robo-gym's ROS server, which get robo-gym's own deadlines.
+            ours = not self.real_robot and not isinstance(self.provider, StaticServerProvider)
+            deadlines = Deadlines.fast() if ours else Deadlines()
         self.deadlines = deadlines
         self.server_seed = server_seed
         if max_steps is not None:

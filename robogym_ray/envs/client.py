@@ -80,7 +80,11 @@ class RobotServerClient:
         self.address = address
         self.deadlines = deadlines or Deadlines()
         self._metadata = ((TOKEN_METADATA_KEY, token),) if token else None
-        self._channel = grpc.insecure_channel(address)
+        # A private subchannel pool: after a server restart on the same port, a shared pool
+        # would make this client wait out gRPC's reconnect backoff of an older channel.
+        self._channel = grpc.insecure_channel(
+            address, options=(("grpc.use_local_subchannel_pool", 1),)
+        )
         self._stub = pb_grpc.RobotServerStub(self._channel)
 
     # -- robo-gym's RPCs -------------------------------------------------------------------

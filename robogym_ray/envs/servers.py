@@ -18,6 +18,7 @@ Providers here:
 from __future__ import annotations
 
 import logging
+import sys
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, Protocol, runtime_checkable
@@ -133,3 +134,19 @@ class StaticServerProvider:
         self, robot: str, scene: str | None, options: Mapping[str, str], seed: int | None
     ) -> StaticLease:
         return StaticLease(self.address, self.token)
+
+
+def default_provider() -> ServerProvider:
+    """The supervisor when one is running in this process's Ray session, else embedded.
+
+    Ray is only consulted when this process already imported and initialised it, so a plain
+    ``gymnasium.make`` neither imports nor starts Ray.
+    """
+    ray = sys.modules.get("ray")
+    if ray is not None and ray.is_initialized():
+        from robogym_ray.actors.provider import supervisor_provider_if_running
+
+        supervised = supervisor_provider_if_running()
+        if supervised is not None:
+            return supervised
+    return EmbeddedServerProvider()

@@ -1,0 +1,82 @@
+"""How a training run joins Ray and gets its robot servers (the supervisor hooks)."""
+
+from __future__ import annotations
+
+import logging
+from collections import Counter
+from dataclasses import dataclass
+from typing import Any
+
+import ray
+
+from robogym_ray.actors import remote
+from robogym_ray.actors.provider import SupervisorServerProvider
+from robogym_ray.actors.supervisor import SupervisorConfig
+from robogym_ray.actors.train_config import TrainConfig
+
+log = logging.getLogger(__name__)
+
+
+def ensure_ray(cfg: TrainConfig) -> bool:
+    """Join ``cfg.address`` or start an embedded local Ray; True if this call started it."""
+    if ray.is_initialized():
+        return False
+    if cfg.address:
+        ray.init(address=cfg.address, log_to_driver=False)
+    else:
+        ray.init(num_cpus=cfg.num_cpus, include_dashboard=False, log_to_driver=False)
+    return True
+
+
+def learner_gpus(cfg: TrainConfig) -> float:
+    if cfg.learner_gpus >= 0:
+        return cfg.learner_gpus
+    return 1.0 if ray.cluster_resources().get("GPU", 0) >= 1 else 0.0
+
+
+@dataclass
+class Supervision:
+    """The supervisor a run uses: a running one (e.g. ``robogym-ray manager``) or its own."""
+
+    actor: Any
+    name: str
+    owned: bool
+    resources: tuple[tuple[str, float], ...] = ()
+
+    def provider(self) -> SupervisorServerProvider:
+        return SupervisorServerProvider(name=self.name, resources=self.resources)
+
+    def restart_counts(self) -> dict[str, int]:
+        """Restarts by cause over every server of this supervisor."""
+        try:
+            servers = ray.get(self.actor.status.remote(), timeout=10)
+        except Exception:  # noqa: BLE001 - a dead supervisor must not stop the run's logging
+            return {}
+        counts: Counter[str] = Counter()
+        for server in servers:
+            counts.update(server.get("restarts", {}))
+        return dict(counts)
+
+    def server_pids(self) -> list[int]:
+        return [s["pid"] for s in ray.get(self.actor.status.remote()) if s.get("pid")]
+
+    def stop(self) -> None:
+        if self.owned:
+            try:
+                ray.get(self.actor.shutdown.remote(), timeout=30)
+            finally:
+                ray.kill(self.actor, no_restart=True)
+
+
+def start_supervision(cfg: TrainConfig, env_id: str, run_name: str) -> Supervision | None:
+    """Supervision for RoboGymRay Sim tasks; None for other envs (e.g. Pendulum-v1)."""
+    if not env_id.startswith("RoboGymRay/"):
+        return None
+    resources = ((cfg.server_resource, 0.01),) if cfg.server_resource else ()
+    running = remote.get_supervisor()
+    if running is not None:
+        log.warning("using the running supervisor %s", remote.SUPERVISOR_NAME)
+        return Supervision(running, remote.SUPERVISOR_NAME, owned=False, resources=resources)
+    name = f"{remote.SUPERVISOR_NAME}-{run_name}"
+    actor = remote.start_supervisor(SupervisorConfig(server_num_cpus=cfg.server_cpus), name=name)
+    return Supervision(actor, name, owned=True, resources=resources)
