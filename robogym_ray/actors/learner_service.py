@@ -113,3 +113,8 @@ class LearnerService:
 
     def ping(self) -> int:
         return os.getpid()
+
+    def status(self) -> dict[str, int]:
+        """Counters that survive (version) or reveal (restored_from_step) a restart."""
+        return {"pid": os.getpid(), "version": self.version, "inserted": self.inserted,
+                "restored_from_step": self.restored_from_step}

@@ -105,6 +105,8 @@ class TrainingRun:
             num_gpus=setup.learner_gpus(cfg),
             max_restarts=3,
             max_task_retries=0,
+            name=f"learner-{self.run_dir.name}",
+            namespace=remote.NAMESPACE,
         ).remote(
             d4pg,
             self.obs_dim,
@@ -265,6 +267,7 @@ class TrainingRun:
 
     def _finish(self, start: float, logger: Any) -> dict[str, Any]:
         checkpoint = ray.get(self.learner.checkpoint.remote())
+        learner_status = ray.get(self.learner.status.remote())
         wall = time.perf_counter() - start
         scalars = self._scalars(start)
         logger.write(scalars, self.stats.env_steps)
@@ -277,6 +280,8 @@ class TrainingRun:
             "learner_steps": int(scalars["learner/steps"]),
             "checkpoint": checkpoint,
             "restarts": self.restart_counts(),
+            "learner_restored_from_step": learner_status["restored_from_step"],
+            "dropped_steps": self.stats.dropped_steps,
             "final_status_counts": dict(Counter(self.stats.statuses)),
             "logdir": str(self.run_dir),
             **{k: round(v, 4) for k, v in scalars.items()},

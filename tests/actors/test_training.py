@@ -1,0 +1,159 @@
+"""The distributed training program on a local Ray (num_cpus=2): the issue's acceptance runs."""
+
+from __future__ import annotations
+
+import os
+import signal
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+import ray
+
+from robogym_ray.actors import remote
+from robogym_ray.actors.train_config import TrainConfig
+from robogym_ray.actors.training import run_training
+from robogym_ray.errors import ConfigError
+
+pytestmark = [pytest.mark.ray, pytest.mark.slow, pytest.mark.usefixtures("ray_cluster")]
+
+NAV = "RoboGymRay/ObstacleAvoidanceMir100Sim-v0"
+EXPECTED_TAGS = {
+    "episode/return",
+    "train/success_rate",
+    "train/collision_rate",
+    "train/timeout_rate",
+    "eval/success_rate",
+    "eval/collision_rate",
+    "eval/timeout_rate",
+    "loss/critic",
+    "loss/policy",
+    "learner/mean_q",
+    "replay/mean_priority",
+    "replay/size",
+    "throughput/env_steps_per_s",
+    "throughput/learner_steps_per_s",
+    "weights/lag",
+}
+
+
+def scalar_tags(run_dir: str) -> set[str]:
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    acc = EventAccumulator(run_dir)
+    acc.Reload()
+    return set(acc.Tags()["scalars"])
+
+
+def test_navigation_run_completes_with_tensorboard_scalars(tmp_path: Path) -> None:
+    cfg = TrainConfig(
+        task=NAV,
+        workers=2,
+        total_steps=3000,
+        logdir=str(tmp_path),
+        run_name="nav",
+        progress=False,
+        log_every_s=1.0,
+    )
+    summary = run_training(cfg)
+    assert summary["env_steps"] >= 3000
+    assert summary["learner_steps"] > 0 and summary["episodes"] > 0
+    assert Path(summary["checkpoint"]).exists()
+    tags = scalar_tags(str(tmp_path / "nav"))
+    assert tags >= EXPECTED_TAGS, EXPECTED_TAGS - tags
+    assert (tmp_path / "nav" / "summary.json").exists()
+
+
+def _kill_when(condition: Any, pid_of: Any, done: threading.Event, log: list[str]) -> None:
+    """Background fault injector: SIGKILL ``pid_of()`` once ``condition()`` holds."""
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and not done.is_set():
+        try:
+            if condition():
+                pid = pid_of()
+                os.kill(pid, signal.SIGKILL)
+                log.append(f"killed {pid}")
+                return
+        except Exception as exc:  # noqa: BLE001 - actors may not exist yet
+            log.append(repr(exc))
+        time.sleep(0.5)
+
+
+def test_killing_a_robot_server_and_the_learner_mid_run(tmp_path: Path) -> None:
+    run = "faults"
+    cfg = TrainConfig(
+        task=NAV,
+        workers=2,
+        total_steps=3000,
+        logdir=str(tmp_path),
+        run_name=run,
+        progress=False,
+        checkpoint_every=50,
+        evaluator=False,
+    )
+    done = threading.Event()
+    log: list[str] = []
+
+    def supervisor() -> Any:
+        return ray.get_actor(f"{remote.SUPERVISOR_NAME}-{run}", namespace=remote.NAMESPACE)
+
+    def learner() -> Any:
+        return ray.get_actor(f"learner-{run}", namespace=remote.NAMESPACE)
+
+    def servers_up() -> bool:
+        return len([s for s in ray.get(supervisor().status.remote()) if s["pid"]]) >= 2
+
+    def server_pid() -> int:
+        return next(s["pid"] for s in ray.get(supervisor().status.remote()) if s["pid"])
+
+    def learner_checkpointed() -> bool:
+        return (tmp_path / run / "checkpoints" / "learner.pt").exists()
+
+    def learner_pid() -> int:
+        return int(ray.get(learner().status.remote())["pid"])
+
+    injectors = [
+        threading.Thread(target=_kill_when, args=(servers_up, server_pid, done, log)),
+        threading.Thread(target=_kill_when, args=(learner_checkpointed, learner_pid, done, log)),
+    ]
+    for t in injectors:
+        t.start()
+    try:
+        summary = run_training(cfg)
+    finally:
+        done.set()
+        for t in injectors:
+            t.join()
+    assert sum("killed" in line for line in log) == 2, log
+    assert summary["env_steps"] >= 3000
+    # The robot server's crash was detected, the server restarted and counted with its cause.
+    assert summary["restarts"].get("connection", 0) >= 1, summary["restarts"]
+    # The worker whose server died ended that episode and dropped its unfinished n-step window,
+    # so no transition in replay spans the crash.
+    assert summary["final_status_counts"].get("server_restarted", 0) >= 1
+    assert summary["dropped_steps"] >= 1
+    # The learner came back from its checkpoint and training continued past it.
+    assert summary["learner_restored_from_step"] > 0
+    assert summary["learner_steps"] > summary["learner_restored_from_step"]
+
+
+def test_a_run_that_cannot_fit_the_cluster_is_refused(tmp_path: Path) -> None:
+    cfg = TrainConfig(task=NAV, workers=8, total_steps=10, logdir=str(tmp_path), progress=False)
+    with pytest.raises(ConfigError, match="Ray CPUs"):
+        run_training(cfg)
+
+
+def test_pendulum_runs_without_a_supervisor(tmp_path: Path) -> None:
+    cfg = TrainConfig(
+        task="pendulum",
+        workers=1,
+        total_steps=600,
+        logdir=str(tmp_path),
+        run_name="pend",
+        progress=False,
+        random_steps=200,
+    )
+    summary = run_training(cfg)
+    assert summary["env_steps"] >= 600 and summary["restarts"] == {}
