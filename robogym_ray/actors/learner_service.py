@@ -116,5 +116,9 @@ class LearnerService:
 
     def status(self) -> dict[str, int]:
         """Counters that survive (version) or reveal (restored_from_step) a restart."""
-        return {"pid": os.getpid(), "version": self.version, "inserted": self.inserted,
-                "restored_from_step": self.restored_from_step}
+        return {
+            "pid": os.getpid(),
+            "version": self.version,
+            "inserted": self.inserted,
+            "restored_from_step": self.restored_from_step,
+        }

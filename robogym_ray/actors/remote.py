@@ -45,6 +45,9 @@ def _alive_nodes() -> int:
 
 
 class _RayRobotServerHost(RobotServerHost):
+    def info(self) -> dict[str, Any]:
+        return {**super().info(), "node_id": ray.get_runtime_context().get_node_id()}
+
     def bind_host(self, host: str) -> str:
         # Other nodes must reach us on a cluster; on one machine loopback exposes nothing.
         if host != "auto":
@@ -74,7 +77,9 @@ class RaySpawner:
         except Exception:
             ray.kill(actor, no_restart=True)
             raise
-        return SpawnedServer(info["address"], info["port"], info["pid"], actor)
+        return SpawnedServer(
+            info["address"], info["port"], info["pid"], actor, node_id=info.get("node_id", "")
+        )
 
     def kill(self, server: SpawnedServer) -> None:
         ray.kill(server.ref, no_restart=True)

@@ -53,6 +53,8 @@ class SpawnedServer:
     port: int
     pid: int
     ref: Any
+    node_id: str = ""
+    """Ray node the server runs on ("" outside Ray)."""
 
 
 class ServerSpawner(Protocol):
@@ -117,6 +119,7 @@ class ManagedServer:
             "address": s.address if s else "",
             "port": s.port if s else 0,
             "pid": s.pid if s else 0,
+            "node_id": s.node_id if s else "",
             "leased": self.leased,
             "message": self.message,
             "restarts": dict(self.book.counts),

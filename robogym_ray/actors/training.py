@@ -282,6 +282,7 @@ class TrainingRun:
             "restarts": self.restart_counts(),
             "learner_restored_from_step": learner_status["restored_from_step"],
             "dropped_steps": self.stats.dropped_steps,
+            "server_nodes": [] if self.supervision is None else self.supervision.server_nodes(),
             "final_status_counts": dict(Counter(self.stats.statuses)),
             "logdir": str(self.run_dir),
             **{k: round(v, 4) for k, v in scalars.items()},

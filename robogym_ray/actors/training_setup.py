@@ -57,8 +57,21 @@ class Supervision:
             counts.update(server.get("restarts", {}))
         return dict(counts)
 
-    def server_pids(self) -> list[int]:
-        return [s["pid"] for s in ray.get(self.actor.status.remote()) if s.get("pid")]
+    def server_nodes(self) -> list[dict[str, Any]]:
+        """Where each running server is: its Ray node id and that node's custom resources."""
+        nodes = {n["NodeID"]: n.get("Resources", {}) for n in ray.nodes() if n.get("Alive")}
+        out = []
+        for server in ray.get(self.actor.status.remote()):
+            if server.get("pid"):
+                res = nodes.get(server.get("node_id", ""), {})
+                custom = {
+                    k: v
+                    for k, v in res.items()
+                    if k not in ("CPU", "GPU", "memory", "object_store_memory")
+                    and not k.startswith("node:")
+                }
+                out.append({"id": server["id"], "node_id": server.get("node_id", ""), **custom})
+        return out
 
     def stop(self) -> None:
         if self.owned:
