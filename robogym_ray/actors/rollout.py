@@ -9,6 +9,7 @@ transition in replay ever spans a crash.
 
 from __future__ import annotations
 
+import logging
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -17,10 +18,12 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from robogym_ray.errors import ConfigError
+from robogym_ray.errors import ConfigError, RobotServerError
 from robogym_ray.learner.actor import PolicyActor, to_env_action
 from robogym_ray.learner.config import D4PGConfig
 from robogym_ray.learner.nstep import NStepAccumulator, Transition, stack_transitions
+
+log = logging.getLogger(__name__)
 
 SERVER_RESTARTED = "server_restarted"
 
@@ -50,6 +53,10 @@ class RolloutResult:
     weights_version: int = -1
     wall_s: float = 0.0
     worker: int = 0
+    robot_errors: int = 0
+    """Failed calls to a real robot (which is never restarted; the worker waits for it)."""
+    paused: bool = False
+    """The robot could not start an episode (e.g. paused by its operator): try again later."""
 
 
 def box_dims(env: gym.Env) -> tuple[int, int]:
@@ -101,7 +108,8 @@ class RolloutWorker:
         self.rng = np.random.default_rng(seed + 7919)
         self.weights_version = -1
         self.total_steps = 0
-        self.obs, _ = self.env.reset(seed=seed)
+        self.retry_wait_s = 1.0
+        self.obs: np.ndarray | None = self.env.reset(seed=seed)[0]
         self._ret, self._len = 0.0, 0
 
     def set_weights(self, weights: Mapping[str, np.ndarray], version: int) -> None:
@@ -119,10 +127,19 @@ class RolloutWorker:
         out: list[Transition] = []
         result = RolloutResult(batch=None, worker=self.index, weights_version=self.weights_version)
         for _ in range(num_steps):
+            if self.obs is None and not self._try_reset(result):
+                break
             action = self._action()
-            next_obs, reward, terminated, truncated, info = self.env.step(
-                to_env_action(action, self.low, self.high)
-            )
+            try:
+                next_obs, reward, terminated, truncated, info = self.env.step(
+                    to_env_action(action, self.low, self.high)
+                )
+            except RobotServerError as exc:
+                # Real robots raise instead of restarting: abandon the episode (and its
+                # unfinished n-step window) and start a new one once the robot answers.
+                self._abandon(result, exc)
+                continue
+            result.steps += 1
             self._ret += float(reward)
             self._len += 1
             status = str(info.get("final_status", ""))
@@ -139,12 +156,29 @@ class RolloutWorker:
                 result.episodes.append(Episode(self._ret, self._len, ended, self.index))
                 self._ret, self._len = 0.0, 0
                 self.nstep.drop()  # nothing may carry over into the next episode
-                self.obs, _ = self.env.reset()
-        self.total_steps += num_steps
-        result.steps = num_steps
+                self.obs = None  # the next step resets (a real robot's reset may fail)
+        self.total_steps += result.steps
         result.batch = stack_transitions(out) if out else None
         result.wall_s = time.perf_counter() - start
         return result
+
+    def _abandon(self, result: RolloutResult, exc: RobotServerError) -> None:
+        log.warning("worker %d: robot error, episode abandoned: %s", self.index, exc)
+        result.robot_errors += 1
+        result.dropped += self.nstep.drop()
+        result.episodes.append(Episode(self._ret, self._len, "robot_error", self.index))
+        self._ret, self._len = 0.0, 0
+        self.obs = None
+
+    def _try_reset(self, result: RolloutResult) -> bool:
+        try:
+            self.obs, _ = self.env.reset()
+            return True
+        except RobotServerError as exc:
+            log.warning("worker %d: robot not ready (%s); retrying later", self.index, exc)
+            result.paused = True
+            time.sleep(self.retry_wait_s)  # don't spin on a paused robot
+            return False
 
     def ping(self) -> int:
         return self.total_steps

@@ -79,3 +79,14 @@ def d4pg_for(preset: TaskPreset, overrides: Mapping[str, Any] | None = None) -> 
         raise ConfigError(f"unknown D4PG setting(s) {unknown}; known: {sorted(known)}")
     values = {k: tuple(v) if isinstance(v, list) else v for k, v in overrides.items()}
     return replace(base, **values)
+
+
+def safety_for(env_id: str) -> Any:
+    """Safety limits for the real robot a task's Rob variant drives (MiR100 twist or UR joints)."""
+    from robogym_ray.actors.safety import SafetyConfig
+
+    if "Mir100" in env_id:
+        return SafetyConfig.mir100()
+    if "UR" in env_id:
+        return SafetyConfig.ur()
+    raise ConfigError(f"no real-robot safety limits known for {env_id}")

@@ -26,8 +26,9 @@ from ray.exceptions import RayActorError
 from robogym_ray.actors import remote
 from robogym_ray.actors import training_setup as setup
 from robogym_ray.actors.evaluator import status_rates
+from robogym_ray.actors.real_client import RealRobotClientFactory
 from robogym_ray.actors.rollout import RolloutResult, box_dims, make_gym_env
-from robogym_ray.actors.tasks import TaskPreset, d4pg_for, resolve_task
+from robogym_ray.actors.tasks import TaskPreset, d4pg_for, resolve_task, safety_for
 from robogym_ray.actors.train_config import TrainConfig
 from robogym_ray.errors import ConfigError
 from robogym_ray.learner.config import D4PGConfig
@@ -53,6 +54,8 @@ class RunStats:
     dropped_steps: int = 0
     learner_failures: int = 0
     worker_failures: int = 0
+    robot_errors: int = 0
+    worker_steps: dict[int, int] = field(default_factory=dict)
     statuses: deque[str] = field(default_factory=lambda: deque(maxlen=100))
     returns: deque[float] = field(default_factory=lambda: deque(maxlen=100))
     learner: dict[str, float] = field(default_factory=dict)
@@ -115,6 +118,7 @@ class TrainingRun:
             checkpoint_dir=str(self.run_dir / "checkpoints"),
             checkpoint_every=cfg.checkpoint_every,
         )
+        self.real_robots: list[Any] = []
         self.workers = self._start_workers()
         self.evaluator = None
         if cfg.evaluator:
@@ -142,9 +146,7 @@ class TrainingRun:
             if i < cfg.workers:
                 factory, kind = make_gym_env(self.preset.env_id, self._env_kwargs(i)), "sim"
             else:
-                address = cfg.real_robot[i - cfg.workers]
-                factory = make_gym_env(real_env_id(self.preset.env_id), {"rs_address": address})
-                kind = "real"
+                factory, kind = self._real_env(i - cfg.workers), "real"
             handle = remote.RolloutActor.options(num_cpus=cfg.worker_cpus).remote(
                 factory,
                 self.d4pg,
@@ -156,6 +158,15 @@ class TrainingRun:
             slots.append(WorkerSlot(i, handle, kind))
         return slots
 
+    def _real_env(self, k: int) -> Any:
+        """A Rob-variant env that reaches the robot only through its real-robot actor."""
+        address = self.cfg.real_robot[k]
+        name = f"real-{self.run_dir.name}-{k}"
+        env_id = real_env_id(self.preset.env_id)
+        self.real_robots.append(remote.start_real_robot(name, address, safety_for(env_id)))
+        kwargs = {"rs_address": address, "client_factory": RealRobotClientFactory(name)}
+        return make_gym_env(env_id, kwargs)
+
     # -- the loop ---------------------------------------------------------------------------
     def run(self) -> dict[str, Any]:
         from robogym_ray.actors.tb import RunLogger  # imports tensorboard lazily
@@ -166,7 +177,6 @@ class TrainingRun:
         learner_calls: deque[Any] = deque()
         eval_ref = self._start_eval()
         start = time.perf_counter()
-        launched = len(pending) * cfg.steps_per_call
         while pending:
             [ref], _ = ray.wait(list(pending), num_returns=1)
             slot = pending.pop(ref)
@@ -181,9 +191,9 @@ class TrainingRun:
                 learner_calls.append(self.learner.add.remote(result.batch))
             self._drain_learner(learner_calls, block=len(learner_calls) > 2)
             self._maybe_sync(slot, result.steps)
-            if launched < cfg.total_steps:
+            in_flight = len(pending) * cfg.steps_per_call
+            if self.stats.env_steps + in_flight < cfg.total_steps:
                 pending[slot.handle.collect.remote(cfg.steps_per_call)] = slot
-                launched += cfg.steps_per_call
             eval_ref = self._poll_eval(eval_ref)
             logger.maybe_write(self._scalars(start), self.stats.env_steps, cfg.log_every_s)
         self._drain_learner(learner_calls, block=True, all_=True)
@@ -194,6 +204,8 @@ class TrainingRun:
         s = self.stats
         s.env_steps += result.steps
         s.dropped_steps += result.dropped
+        s.robot_errors += result.robot_errors
+        s.worker_steps[result.worker] = s.worker_steps.get(result.worker, 0) + result.steps
         for ep in result.episodes:
             s.episodes += 1
             s.statuses.append(ep.final_status)
@@ -259,6 +271,7 @@ class TrainingRun:
                 "faults/dropped_steps": float(s.dropped_steps),
                 "faults/learner_failures": float(s.learner_failures),
                 "faults/worker_failures": float(s.worker_failures),
+                "faults/robot_errors": float(s.robot_errors),
             }
         )
         for cause, count in self.restart_counts().items():
@@ -282,6 +295,8 @@ class TrainingRun:
             "restarts": self.restart_counts(),
             "learner_restored_from_step": learner_status["restored_from_step"],
             "dropped_steps": self.stats.dropped_steps,
+            "worker_steps": {str(k): v for k, v in sorted(self.stats.worker_steps.items())},
+            "robot_errors": self.stats.robot_errors,
             "server_nodes": [] if self.supervision is None else self.supervision.server_nodes(),
             "final_status_counts": dict(Counter(self.stats.statuses)),
             "logdir": str(self.run_dir),
@@ -293,7 +308,7 @@ class TrainingRun:
     def shutdown(self) -> None:
         for slot in self.workers:
             ray.kill(slot.handle)
-        for actor in (self.evaluator, self.learner):
+        for actor in (self.evaluator, self.learner, *self.real_robots):
             if actor is not None:
                 ray.kill(actor)
         if self.supervision is not None:

@@ -25,7 +25,7 @@ that learners bootstrap from the last state. ``info["final_status"]`` is set on 
 from __future__ import annotations
 
 from abc import abstractmethod
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any, ClassVar
 
 import gymnasium as gym
@@ -63,6 +63,9 @@ class RobotServerEnv(gym.Env[np.ndarray, np.ndarray]):
         max_steps: step limit (truncation) of this instance; default: the class attribute
             ``max_episode_steps``. (``gymnasium.make(id, max_episode_steps=N)`` instead wraps
             the env in gymnasium's ``TimeLimit``, which sets no ``final_status``.)
+        client_factory: builds the client from ``(address, deadlines=, token=)`` instead of a
+            direct gRPC ``RobotServerClient`` (the training program routes a real robot's env
+            through its real-robot actor this way, for the safety filter and pause/resume).
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": []}
@@ -80,6 +83,7 @@ class RobotServerEnv(gym.Env[np.ndarray, np.ndarray]):
         deadlines: Deadlines | None = None,
         server_seed: int | None = None,
         max_steps: int | None = None,
+        client_factory: Callable[..., Any] | None = None,
     ) -> None:
         if real_robot and not rs_address:
             raise ConfigError(
@@ -89,6 +93,7 @@ class RobotServerEnv(gym.Env[np.ndarray, np.ndarray]):
         if real_robot and provider is not None:
             raise ConfigError(f"{type(self).__name__}: a Real env takes rs_address, not provider")
         self.real_robot = real_robot
+        self.client_factory = client_factory
         if rs_address:
             provider = StaticServerProvider(rs_address, token)
         self.provider: ServerProvider = provider or default_provider()
@@ -210,9 +215,8 @@ class RobotServerEnv(gym.Env[np.ndarray, np.ndarray]):
             robot, scene, options = self.server_spec()
             self.lease = self.provider.acquire(robot, scene, options, self.server_seed)
             token = getattr(self.lease, "token", None) or self.token
-            self.client = RobotServerClient(
-                self.lease.address, deadlines=self.deadlines, token=token
-            )
+            factory = self.client_factory or RobotServerClient
+            self.client = factory(self.lease.address, deadlines=self.deadlines, token=token)
         return self.client
 
     def _disconnect(self) -> None:

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import os
 import signal
+import subprocess
+import sys
 import threading
 import time
 from pathlib import Path
@@ -137,6 +139,53 @@ def test_killing_a_robot_server_and_the_learner_mid_run(tmp_path: Path) -> None:
     # The learner came back from its checkpoint and training continued past it.
     assert summary["learner_restored_from_step"] > 0
     assert summary["learner_steps"] > summary["learner_restored_from_step"]
+
+
+@pytest.fixture
+def real_mir100() -> Any:
+    """`robogym-ray serve --real-time` in its own process: the stand-in for a real MiR100."""
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "robogym_ray.cli",
+            "serve",
+            "--robot",
+            "mir100",
+            "--scene",
+            "lab_6x8",
+            "--real-time",
+            "--port",
+            "0",
+        ],
+        stdout=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "PYTHONUNBUFFERED": "1"},
+    )
+    line = proc.stdout.readline().strip()
+    assert line.startswith("listening on "), line
+    yield line.removeprefix("listening on ")
+    proc.terminate()
+    proc.wait(timeout=20)
+
+
+def test_mixed_sim_and_real_robot_workers(tmp_path: Path, real_mir100: str) -> None:
+    cfg = TrainConfig(
+        task=NAV,
+        workers=1,
+        real_robot=(real_mir100,),
+        total_steps=600,
+        logdir=str(tmp_path),
+        run_name="mixed",
+        progress=False,
+        evaluator=False,
+        steps_per_call=20,
+    )
+    summary = run_training(cfg)
+    assert summary["env_steps"] >= 600
+    # Worker 1 drove the real-time "real" robot (10 actions/s) through its real-robot actor.
+    assert summary["worker_steps"]["0"] > 0 and summary["worker_steps"]["1"] > 0
+    assert summary["robot_errors"] == 0
 
 
 def test_a_run_that_cannot_fit_the_cluster_is_refused(tmp_path: Path) -> None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
 import gymnasium as gym
@@ -11,12 +12,19 @@ import pytest
 from robogym_ray.actors.evaluator import Evaluator, status_rates
 from robogym_ray.actors.learner_service import LearnerService
 from robogym_ray.actors.rollout import SERVER_RESTARTED, RolloutWorker, box_dims, make_gym_env
+from robogym_ray.envs.client import Deadlines
 from robogym_ray.errors import ConfigError
 from robogym_ray.learner.config import D4PGConfig
 
 SMALL = D4PGConfig(
-    policy_hidden=(32, 32), critic_hidden=(32, 32), batch_size=32, min_replay_size=128,
-    v_min=-1500.0, v_max=0.0, samples_per_insert=32.0, replay_capacity=10_000,
+    policy_hidden=(32, 32),
+    critic_hidden=(32, 32),
+    batch_size=32,
+    min_replay_size=128,
+    v_min=-1500.0,
+    v_max=0.0,
+    samples_per_insert=32.0,
+    replay_capacity=10_000,
 )
 
 
@@ -93,10 +101,39 @@ def test_evaluator_reports_rates() -> None:
     assert -2000 < stats["eval_return"] < 0
     worker.close()
     assert status_rates(["success", "collision", "success", "max_steps_exceeded"]) == {
-        "success_rate": 0.5, "collision_rate": 0.25, "timeout_rate": 0.25
+        "success_rate": 0.5,
+        "collision_rate": 0.25,
+        "timeout_rate": 0.25,
     }
 
 
 def test_non_box_spaces_are_refused() -> None:
     with pytest.raises(ConfigError, match="Box"):
         box_dims(gym.make("CartPole-v1"))
+
+
+def test_real_robot_failure_abandons_the_episode_and_waits_for_the_robot() -> None:
+    from robogym_ray.robots.server import start_robot_server
+
+    server = start_robot_server("mir100", scene="lab_6x8", seed=0)
+    port = server.port
+    env_kwargs = {"rs_address": server.address, "deadlines": Deadlines.fast()}
+    worker = RolloutWorker(
+        make_gym_env("RoboGymRay/ObstacleAvoidanceMir100Rob-v0", env_kwargs), SMALL, seed=0
+    )
+    worker.retry_wait_s = 0.01
+    assert worker.collect(10).steps == 10
+    server.stop()  # the "robot" goes away mid-episode
+    result = worker.collect(10)
+    assert result.robot_errors == 1 and result.paused
+    assert result.episodes[-1].final_status == "robot_error"
+    assert result.batch is None  # the unfinished window was dropped, not flushed
+    server = start_robot_server("mir100", scene="lab_6x8", seed=0, port=port)
+    try:
+        deadline = time.monotonic() + 30  # gRPC may back off before reconnecting
+        while worker.collect(5).steps == 0 and time.monotonic() < deadline:
+            pass
+        assert worker.collect(5).steps == 5  # the worker carried on with the robot back
+    finally:
+        server.stop()
+        worker.close()

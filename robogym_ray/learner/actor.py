@@ -1,0 +1,40 @@
+"""CPU policy actor with Gaussian exploration, fed with weights from the learner."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import torch
+
+from robogym_ray.learner.networks import Policy
+
+
+class PolicyActor:
+    """Acts with a CPU copy of the policy; each actor can get its own ``sigma`` (Ape-X style).
+
+    Actions are on the policy's [-1, 1] scale; :func:`to_env_action` maps them to a Box.
+    """
+
+    def __init__(self, obs_dim: int, act_dim: int, hidden: Sequence[int], sigma: float,
+                 layer_norm: bool = False, seed: int | None = None) -> None:
+        self.policy = Policy(obs_dim, act_dim, hidden, layer_norm).requires_grad_(False)
+        self.sigma = sigma
+        self.act_dim = act_dim
+        self.rng = np.random.default_rng(seed)
+
+    def set_weights(self, weights: dict[str, np.ndarray]) -> None:
+        self.policy.load_state_dict({k: torch.as_tensor(v) for k, v in weights.items()})
+
+    def act(self, obs: np.ndarray, explore: bool) -> np.ndarray:
+        """Policy action for one observation, plus N(0, sigma) noise when exploring, clipped."""
+        with torch.inference_mode():
+            action = self.policy(torch.as_tensor(obs, dtype=torch.float32)[None])[0].numpy()
+        if explore and self.sigma > 0:
+            action = action + self.sigma * self.rng.standard_normal(self.act_dim)
+        return np.clip(action, -1.0, 1.0).astype(np.float32)
+
+
+def to_env_action(action: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
+    """Map an action in [-1, 1] affinely onto the Box ``[low, high]``."""
+    return low + (action + 1.0) * 0.5 * (high - low)

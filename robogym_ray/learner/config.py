@@ -1,0 +1,131 @@
+"""D4PG hyperparameters: one frozen dataclass shared by the local runner and the Ray program.
+
+Choosing the critic's support ``[v_min, v_max]``: the categorical critic can only represent
+discounted returns inside it, and atoms outside the real range are wasted resolution.
+
+* effective horizon ``H = 1 / (1 - discount)`` (100 steps for 0.99), capped by the episode
+  length when episodes are shorter;
+* ``v_max ~ max_reward_per_step * H`` and ``v_min ~ min_reward_per_step * H``;
+* for symmetric rewards use ``v_min = -v_max``; for one-signed rewards cover only that sign
+  (Pendulum-v1: rewards in [-16.3, 0], so ``[-1500, 0]``; Acme's ±150 would clip almost every
+  target there). Alternatively scale rewards in the environment and keep a small support.
+
+Defaults follow DeepMind Acme's D4PG (n-step 5, 51 atoms, batch 256, hard target copies every
+100 learner steps, global-norm clipping at 40), except that replay is prioritized (Ape-X).
+"""
+
+from __future__ import annotations
+
+import ast
+import inspect
+import textwrap
+from dataclasses import dataclass
+from functools import cache
+
+from robogym_ray.errors import ConfigError
+
+
+@dataclass(frozen=True)
+class D4PGConfig:
+    """All D4PG hyperparameters; each component reads only the fields it needs."""
+
+    # --- networks -------------------------------------------------------------------------
+    policy_hidden: tuple[int, ...] = (400, 300)
+    """Hidden layer sizes of the deterministic tanh policy."""
+    critic_hidden: tuple[int, ...] = (400, 300)
+    """Hidden layer sizes of the distributional critic (input: concatenated obs and action)."""
+    layer_norm: bool = False
+    """Put a LayerNorm after every hidden Linear (Acme-style); helps with unscaled inputs."""
+    num_atoms: int = 51
+    """Number of atoms of the categorical value distribution."""
+    v_min: float = -150.0
+    """Lowest atom of the support (see the module docstring for how to choose it)."""
+    v_max: float = 150.0
+    """Highest atom of the support."""
+
+    # --- returns --------------------------------------------------------------------------
+    discount: float = 0.99
+    """Per-step discount gamma; the n-step target bootstraps with gamma**n."""
+    n_step: int = 5
+    """Length of the n-step return window computed by the actors."""
+
+    # --- optimisation ---------------------------------------------------------------------
+    batch_size: int = 256
+    """Transitions per learner step."""
+    policy_lr: float = 1e-4
+    """Adam learning rate of the policy."""
+    critic_lr: float = 1e-4
+    """Adam learning rate of the critic."""
+    max_grad_norm: float = 40.0
+    """Global gradient-norm clip applied to each network separately (0 disables)."""
+    target_update_period: int = 100
+    """Learner steps between hard copies of the online networks into the targets."""
+    target_tau: float = 0.0
+    """If > 0, Polyak-average the targets by this much every step instead of hard copies."""
+    samples_per_insert: float = 32.0
+    """Replayed samples per inserted transition; batch_size / this = learner steps per insert."""
+
+    # --- prioritized replay ---------------------------------------------------------------
+    replay_capacity: int = 1_000_000
+    """Transitions kept; the oldest are evicted first (FIFO) once full."""
+    min_replay_size: int = 1_000
+    """Transitions required before the first learner step."""
+    prioritized: bool = True
+    """Proportional prioritized replay; False samples uniformly (weights all 1)."""
+    priority_exponent: float = 0.6
+    """alpha: P(i) is proportional to p_i**alpha."""
+    importance_beta_start: float = 0.4
+    """beta at the first learner step; annealed linearly to 1."""
+    importance_beta_steps: int = 100_000
+    """Learner steps over which beta reaches 1."""
+    priority_eps: float = 1e-6
+    """Added to every priority so that no transition becomes unsampleable."""
+
+    # --- exploration ----------------------------------------------------------------------
+    sigma: float = 0.3
+    """Std of the Gaussian exploration noise on the [-1, 1] action scale (per actor)."""
+
+    # --- runtime --------------------------------------------------------------------------
+    device: str = "auto"
+    """Learner device: 'auto' picks CUDA when present, else CPU; or any torch device string."""
+    num_threads: int = 0
+    """torch intra-op threads for the learner process; 0 leaves torch's default."""
+
+    def __post_init__(self) -> None:
+        checks = [
+            (self.num_atoms >= 2, "num_atoms", self.num_atoms, ">= 2"),
+            (self.v_min < self.v_max, "v_min", (self.v_min, self.v_max), "v_min < v_max"),
+            (0.0 < self.discount <= 1.0, "discount", self.discount, "in (0, 1]"),
+            (self.n_step >= 1, "n_step", self.n_step, ">= 1"),
+            (self.batch_size >= 1, "batch_size", self.batch_size, ">= 1"),
+            (0.0 <= self.target_tau <= 1.0, "target_tau", self.target_tau, "in [0, 1]"),
+            (self.target_update_period >= 1, "target_update_period",
+             self.target_update_period, ">= 1"),
+            (self.samples_per_insert > 0, "samples_per_insert", self.samples_per_insert, "> 0"),
+            (self.replay_capacity >= self.batch_size, "replay_capacity",
+             self.replay_capacity, ">= batch_size"),
+            (self.priority_exponent >= 0.0, "priority_exponent", self.priority_exponent, ">= 0"),
+            (0.0 <= self.importance_beta_start <= 1.0, "importance_beta_start",
+             self.importance_beta_start, "in [0, 1]"),
+            (self.sigma >= 0.0, "sigma", self.sigma, ">= 0"),
+        ]
+        for ok, name, value, expected in checks:
+            if not ok:
+                raise ConfigError(f"D4PGConfig.{name}={value!r}; expected {expected}")
+
+
+@cache
+def field_docs(cls: type) -> dict[str, str]:
+    """Attribute docstrings of a dataclass (the string literal after each field), for --help.
+
+    Python drops these strings at runtime, so they are read back from the class source.
+    """
+    tree = ast.parse(textwrap.dedent(inspect.getsource(cls)))
+    body = tree.body[0].body  # type: ignore[attr-defined]
+    docs: dict[str, str] = {}
+    for stmt, nxt in zip(body, body[1:], strict=False):
+        is_doc = isinstance(nxt, ast.Expr) and isinstance(getattr(nxt, "value", None), ast.Constant)
+        if isinstance(stmt, ast.AnnAssign) and isinstance(stmt.target, ast.Name) and is_doc:
+            docs[stmt.target.id] = str(nxt.value.value)  # type: ignore[attr-defined]
+    return docs
+

@@ -1,0 +1,168 @@
+"""Single-process D4PG on any Gymnasium id, with the classes the Ray program uses.
+
+    python -m robogym_ray.learner.run_local --env Pendulum-v1 --steps 20000 --seed 0
+
+One actor (PolicyActor + NStepAccumulator) feeds the D4PGLearner's replay; the learner takes
+``samples_per_insert / batch_size`` steps per inserted transition and the actor pulls weights
+every ``weights_sync_period`` env steps, as a rollout worker would. Ends with one JSON line.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import sys
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from robogym_ray.learner.actor import PolicyActor, to_env_action
+from robogym_ray.learner.config import D4PGConfig, field_docs
+from robogym_ray.learner.learner import D4PGLearner
+from robogym_ray.learner.nstep import NStepAccumulator, stack_transitions
+
+# Tuned settings per env id, applied under --preset auto; explicit flags still win.
+PRESETS: dict[str, dict[str, Any]] = {
+    # Rewards in [-16.3, 0], 200-step truncated episodes: support covers the discounted range;
+    # 1 learner step per env step (samples_per_insert == batch_size), as SB3/RLlib do here;
+    # (256, 256) nets cost ~40% less per step than (400, 300) and suffice for this task.
+    "Pendulum-v1": {
+        "policy_hidden": (256, 256), "critic_hidden": (256, 256),
+        "v_min": -1500.0, "v_max": 0.0, "policy_lr": 1e-3, "critic_lr": 1e-3,
+        "samples_per_insert": 256.0, "target_tau": 0.005, "min_replay_size": 1000,
+        "importance_beta_steps": 20_000, "sigma": 0.2, "n_step": 3,
+    },
+}
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    """What to run; learning hyperparameters live in D4PGConfig."""
+
+    env: str = "Pendulum-v1"
+    """Gymnasium environment id (Box observation and action spaces)."""
+    steps: int = 20_000
+    """Environment steps to train for."""
+    seed: int = 0
+    """Seed of env, networks, replay and exploration."""
+    eval_episodes: int = 10
+    """Deterministic (no-noise) evaluation episodes at the end."""
+    weights_sync_period: int = 1
+    """Env steps between the actor's weight pulls from the learner."""
+    log_every: int = 0
+    """Print progress to stderr every this many env steps (0: never)."""
+    preset: str = "auto"
+    """'auto': apply PRESETS[env] when known; 'none': D4PGConfig defaults only."""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Flags from both dataclasses, with their field docstrings as help."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    for cls in (RunConfig, D4PGConfig):
+        group, docs = parser.add_argument_group(cls.__name__), field_docs(cls)
+        for f in dataclasses.fields(cls):
+            kwargs: dict[str, Any] = {"default": None, "help": f"{docs.get(f.name, '')} "
+                                      f"(default: {f.default})"}
+            if isinstance(f.default, bool):
+                kwargs["type"] = lambda s: s.lower() in ("1", "true", "yes")
+            elif isinstance(f.default, tuple):
+                kwargs.update(type=int, nargs="+")
+            else:
+                kwargs["type"] = type(f.default)
+            group.add_argument("--" + f.name.replace("_", "-"), dest=f.name, **kwargs)
+    return parser
+
+
+def parse_args(argv: Sequence[str] | None = None) -> tuple[RunConfig, D4PGConfig]:
+    ns = {k: v for k, v in vars(build_parser().parse_args(argv)).items() if v is not None}
+    run_names = {f.name for f in dataclasses.fields(RunConfig)}
+    run = RunConfig(**{k: v for k, v in ns.items() if k in run_names})
+    overrides = {k: (tuple(v) if isinstance(v, list) else v)
+                 for k, v in ns.items() if k not in run_names}
+    preset = PRESETS.get(run.env, {}) if run.preset == "auto" else {}
+    return run, D4PGConfig(**{**preset, **overrides})
+
+
+def evaluate(env_id: str, actor: PolicyActor, episodes: int, seed: int) -> list[float]:
+    """Undiscounted returns of ``episodes`` noise-free episodes (seeds seed, seed+1, ...)."""
+    env = gym.make(env_id)
+    low, high = env.action_space.low, env.action_space.high
+    returns = []
+    for ep in range(episodes):
+        obs, _ = env.reset(seed=seed + ep)
+        total, done = 0.0, False
+        while not done:
+            action = to_env_action(actor.act(obs, explore=False), low, high)
+            obs, reward, terminated, truncated, _ = env.step(action)
+            total += float(reward)
+            done = terminated or truncated
+        returns.append(total)
+    env.close()
+    return returns
+
+
+def train(run: RunConfig, cfg: D4PGConfig) -> dict[str, Any]:
+    """Train for ``run.steps`` env steps, evaluate, and return the summary dict."""
+    start = time.perf_counter()
+    env = gym.make(run.env)
+    obs_dim, act_dim = env.observation_space.shape[0], env.action_space.shape[0]
+    low, high = env.action_space.low, env.action_space.high
+    learner = D4PGLearner(cfg, obs_dim, act_dim, seed=run.seed)
+    actor = PolicyActor(obs_dim, act_dim, cfg.policy_hidden, cfg.sigma, cfg.layer_norm,
+                        seed=run.seed)
+    actor.set_weights(learner.get_weights())
+    nstep = NStepAccumulator(cfg.n_step, cfg.discount)
+    steps_per_insert = cfg.samples_per_insert / cfg.batch_size
+    credit, episode_return, returns = 0.0, 0.0, []
+    metrics: dict[str, float] = {}
+
+    obs, _ = env.reset(seed=run.seed)
+    for t in range(1, run.steps + 1):
+        action = actor.act(obs, explore=True)
+        next_obs, reward, terminated, truncated, _ = env.step(to_env_action(action, low, high))
+        episode_return += float(reward)
+        transitions = nstep.push(obs, action, float(reward), next_obs, terminated, truncated)
+        if transitions:
+            learner.add(stack_transitions(transitions))
+        # Learner steps are earned per inserted transition, only once replay is warm.
+        credit = credit + len(transitions) * steps_per_insert if learner.can_step() else 0.0
+        while credit >= 1.0:
+            metrics = learner.step()
+            credit -= 1.0
+        if t % run.weights_sync_period == 0:
+            actor.set_weights(learner.get_weights())
+        obs = next_obs
+        if terminated or truncated:
+            returns.append(episode_return)
+            episode_return = 0.0
+            obs, _ = env.reset()
+        if run.log_every and t % run.log_every == 0:
+            recent = np.mean(returns[-5:]) if returns else float("nan")
+            print(f"step {t} return(last5) {recent:.1f} {metrics}", file=sys.stderr)
+    env.close()
+    train_s = time.perf_counter() - start
+    actor.set_weights(learner.get_weights())
+    evals = evaluate(run.env, actor, run.eval_episodes, seed=run.seed + 10_000)
+    return {
+        "env": run.env, "seed": run.seed, "steps": run.steps,
+        "eval_mean": float(np.mean(evals)), "eval_std": float(np.std(evals)),
+        "wall_s": round(time.perf_counter() - start, 2), "train_s": round(train_s, 2),
+        "learner_steps": learner.num_steps, "train_episodes": len(returns),
+        "config": dataclasses.asdict(cfg),
+    }
+
+
+def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
+    run, cfg = parse_args(argv)
+    result = train(run, cfg)
+    print(json.dumps(result))
+    return result
+
+
+if __name__ == "__main__":
+    main()

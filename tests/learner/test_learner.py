@@ -1,0 +1,136 @@
+"""D4PGLearner: metrics, weights, targets, priorities, save/restore."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from robogym_ray.errors import ConfigError
+from robogym_ray.learner.actor import PolicyActor, to_env_action
+from robogym_ray.learner.config import D4PGConfig
+from robogym_ray.learner.learner import D4PGLearner
+
+OBS, ACT = 3, 2
+
+
+def _config(**kw: object) -> D4PGConfig:
+    base = dict(policy_hidden=(32, 32), critic_hidden=(32, 32), batch_size=16,
+                replay_capacity=512, min_replay_size=32, v_min=-10.0, v_max=10.0,
+                target_update_period=3, device="cpu")
+    return D4PGConfig(**{**base, **kw})  # type: ignore[arg-type]
+
+
+def _data(n: int, seed: int = 0) -> dict[str, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    return {
+        "obs": rng.standard_normal((n, OBS), dtype=np.float32),
+        "action": rng.uniform(-1, 1, (n, ACT)).astype(np.float32),
+        "reward": rng.uniform(-1, 1, n).astype(np.float32),
+        "discount": rng.choice([0.0, 0.95], n).astype(np.float32),
+        "next_obs": rng.standard_normal((n, OBS), dtype=np.float32),
+    }
+
+
+def _learner(**kw: object) -> D4PGLearner:
+    learner = D4PGLearner(_config(**kw), OBS, ACT, seed=0)
+    learner.add(_data(200))
+    return learner
+
+
+def test_step_returns_finite_metrics_and_updates_priorities() -> None:
+    learner = _learner()
+    assert learner.can_step()
+    before = learner.replay.sum_tree.root
+    metrics = learner.step()
+    for key in ("critic_loss", "policy_loss", "mean_q", "mean_priority", "beta", "steps"):
+        assert np.isfinite(metrics[key]), key
+    assert metrics["steps"] == 1 and learner.replay.sum_tree.root != before
+
+
+def test_hard_target_copies_every_period_and_polyak_moves_slightly() -> None:
+    learner = _learner()
+    for _ in range(2):
+        learner.step()
+    assert not torch.equal(learner.policy.net[0].weight, learner.target_policy.net[0].weight)
+    learner.step()  # step 3 == target_update_period
+    assert torch.equal(learner.critic.net[0].weight, learner.target_critic.net[0].weight)
+    polyak = _learner(target_tau=0.1)
+    start = polyak.target_critic.net[0].weight.clone()
+    polyak.step()
+    moved = polyak.target_critic.net[0].weight - start
+    online_delta = polyak.critic.net[0].weight - start
+    torch.testing.assert_close(moved, 0.1 * online_delta)
+
+
+def test_weights_reach_the_actor_and_actions_are_bounded() -> None:
+    learner = _learner()
+    learner.step()
+    actor = PolicyActor(OBS, ACT, (32, 32), sigma=0.5, seed=0)
+    actor.set_weights(learner.get_weights())
+    assert all(isinstance(v, np.ndarray) for v in learner.get_weights().values())
+    obs = np.ones(OBS, np.float32)
+    with torch.no_grad():
+        expected = learner.policy(torch.as_tensor(obs)[None])[0].numpy()
+    np.testing.assert_allclose(actor.act(obs, explore=False), expected, rtol=1e-6)
+    noisy = np.array([actor.act(obs, explore=True) for _ in range(50)])
+    assert noisy.std() > 0.1 and np.abs(noisy).max() <= 1.0
+    np.testing.assert_allclose(to_env_action(np.array([-1.0, 1.0]), np.array([-2.0, 0.0]),
+                                             np.array([2.0, 4.0])), [-2.0, 4.0])
+
+
+def test_initial_priorities_are_positive_per_sample_losses() -> None:
+    learner = _learner()
+    priorities = learner.compute_initial_priorities(_data(10, seed=1))
+    assert priorities.shape == (10,) and (priorities > 0).all()
+    learner.add(_data(10, seed=1), priorities)
+
+
+def test_save_restore_gives_identical_outputs_and_training_continues(tmp_path: Path) -> None:
+    learner = _learner()
+    for _ in range(5):
+        learner.step()
+    path = tmp_path / "ckpt.pt"
+    learner.save(path, include_replay=True)
+    clone = D4PGLearner(_config(), OBS, ACT, seed=42)
+    clone.restore(path)
+    obs = torch.randn(7, OBS)
+    act = torch.rand(7, ACT) * 2 - 1
+    for name in ("policy", "target_policy"):
+        torch.testing.assert_close(getattr(clone, name)(obs), getattr(learner, name)(obs),
+                                   rtol=0, atol=0)
+    for name in ("critic", "target_critic"):
+        torch.testing.assert_close(getattr(clone, name)(obs, act),
+                                   getattr(learner, name)(obs, act), rtol=0, atol=0)
+    assert clone.num_steps == learner.num_steps == 5
+    # Same replay, RNG, optimizer moments and counters: the next steps agree exactly.
+    for _ in range(3):
+        assert clone.step() == learner.step()
+    assert clone.num_steps == 8
+
+
+def test_restore_without_replay_keeps_the_networks(tmp_path: Path) -> None:
+    learner = _learner()
+    learner.step()
+    learner.save(tmp_path / "nets.pt")
+    assert not (tmp_path / "nets.pt.replay.npz").exists()
+    clone = D4PGLearner(_config(), OBS, ACT, seed=1)
+    clone.restore(tmp_path / "nets.pt")
+    assert len(clone.replay) == 0
+    obs = torch.randn(4, OBS)
+    torch.testing.assert_close(clone.policy(obs), learner.policy(obs), rtol=0, atol=0)
+
+
+def test_uniform_replay_and_beta_annealing() -> None:
+    learner = _learner(prioritized=False, importance_beta_steps=4)
+    metrics = [learner.step() for _ in range(5)]
+    assert metrics[0]["beta"] == pytest.approx(0.4) and metrics[-1]["beta"] == 1.0
+    _, _, weights = learner.replay.sample(16, 1.0)
+    np.testing.assert_allclose(weights, 1.0)
+
+
+def test_config_validation_names_the_field() -> None:
+    with pytest.raises(ConfigError, match="v_min"):
+        D4PGConfig(v_min=1.0, v_max=0.0)
