@@ -15,6 +15,7 @@ import gymnasium as gym
 
 from robogym_ray.errors import ConfigError
 from robogym_ray.learner.config import D4PGConfig
+from robogym_ray.learner.run_local import PRESETS
 
 
 @dataclass(frozen=True)
@@ -34,22 +35,8 @@ TASKS: dict[str, TaskPreset] = {
         "RoboGymRay/EndEffectorPositioningUR10Sim-v0",
         {"v_min": -150.0, "v_max": 150.0, "layer_norm": True, "min_replay_size": 500},
     ),
-    # Pendulum rewards lie in [-16.3, 0] over 200 truncated steps (d4pg-notes.md).
-    "pendulum": TaskPreset(
-        "Pendulum-v1",
-        {
-            "v_min": -1500.0,
-            "v_max": 0.0,
-            "samples_per_insert": 256.0,
-            "min_replay_size": 1000,
-            "policy_lr": 1e-3,
-            "critic_lr": 1e-3,
-            "sigma": 0.2,
-            "policy_hidden": (256, 256),
-            "critic_hidden": (256, 256),
-            "target_tau": 0.005,
-        },
-    ),
+    # Pendulum: the preset proven by benchmarks/pendulum.py (one source: run_local.PRESETS).
+    "pendulum": TaskPreset("Pendulum-v1", PRESETS["Pendulum-v1"]),
 }
 
 

@@ -18,11 +18,7 @@ averaging every step (the Pendulum-v1 preset in ``run_local`` uses 0.005, as TD3
 
 from __future__ import annotations
 
-import ast
-import inspect
-import textwrap
 from dataclasses import dataclass
-from functools import cache
 
 from robogym_ray.errors import ConfigError
 
@@ -101,33 +97,28 @@ class D4PGConfig:
             (self.n_step >= 1, "n_step", self.n_step, ">= 1"),
             (self.batch_size >= 1, "batch_size", self.batch_size, ">= 1"),
             (0.0 <= self.target_tau <= 1.0, "target_tau", self.target_tau, "in [0, 1]"),
-            (self.target_update_period >= 1, "target_update_period",
-             self.target_update_period, ">= 1"),
+            (
+                self.target_update_period >= 1,
+                "target_update_period",
+                self.target_update_period,
+                ">= 1",
+            ),
             (self.samples_per_insert > 0, "samples_per_insert", self.samples_per_insert, "> 0"),
-            (self.replay_capacity >= self.batch_size, "replay_capacity",
-             self.replay_capacity, ">= batch_size"),
+            (
+                self.replay_capacity >= self.batch_size,
+                "replay_capacity",
+                self.replay_capacity,
+                ">= batch_size",
+            ),
             (self.priority_exponent >= 0.0, "priority_exponent", self.priority_exponent, ">= 0"),
-            (0.0 <= self.importance_beta_start <= 1.0, "importance_beta_start",
-             self.importance_beta_start, "in [0, 1]"),
+            (
+                0.0 <= self.importance_beta_start <= 1.0,
+                "importance_beta_start",
+                self.importance_beta_start,
+                "in [0, 1]",
+            ),
             (self.sigma >= 0.0, "sigma", self.sigma, ">= 0"),
         ]
         for ok, name, value, expected in checks:
             if not ok:
                 raise ConfigError(f"D4PGConfig.{name}={value!r}; expected {expected}")
-
-
-@cache
-def field_docs(cls: type) -> dict[str, str]:
-    """Attribute docstrings of a dataclass (the string literal after each field), for --help.
-
-    Python drops these strings at runtime, so they are read back from the class source.
-    """
-    tree = ast.parse(textwrap.dedent(inspect.getsource(cls)))
-    body = tree.body[0].body  # type: ignore[attr-defined]
-    docs: dict[str, str] = {}
-    for stmt, nxt in zip(body, body[1:], strict=False):
-        is_doc = isinstance(nxt, ast.Expr) and isinstance(getattr(nxt, "value", None), ast.Constant)
-        if isinstance(stmt, ast.AnnAssign) and isinstance(stmt.target, ast.Name) and is_doc:
-            docs[stmt.target.id] = str(nxt.value.value)  # type: ignore[attr-defined]
-    return docs
-

@@ -21,8 +21,9 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from robogym_ray.config import field_docs
 from robogym_ray.learner.actor import PolicyActor, to_env_action
-from robogym_ray.learner.config import D4PGConfig, field_docs
+from robogym_ray.learner.config import D4PGConfig
 from robogym_ray.learner.learner import D4PGLearner
 from robogym_ray.learner.nstep import NStepAccumulator, stack_transitions
 
