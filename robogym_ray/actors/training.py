@@ -60,6 +60,7 @@ class RunStats:
     returns: deque[float] = field(default_factory=lambda: deque(maxlen=100))
     learner: dict[str, float] = field(default_factory=dict)
     eval: dict[str, float] = field(default_factory=dict)
+    eval_history: list[dict[str, float]] = field(default_factory=list)
 
 
 def worker_sigmas(d4pg: D4PGConfig, cfg: TrainConfig, n: int) -> list[float]:
@@ -175,8 +176,8 @@ class TrainingRun:
         logger = RunLogger(self.run_dir, total=cfg.total_steps, progress=cfg.progress)
         pending = {slot.handle.collect.remote(cfg.steps_per_call): slot for slot in self.workers}
         learner_calls: deque[Any] = deque()
+        self.started = start = time.perf_counter()
         eval_ref = self._start_eval()
-        start = time.perf_counter()
         while pending:
             [ref], _ = ray.wait(list(pending), num_returns=1)
             slot = pending.pop(ref)
@@ -246,6 +247,13 @@ class TrainingRun:
             return ref
         try:
             self.stats.eval = ray.get(ref)
+            self.stats.eval_history.append({
+                "wall_s": round(time.perf_counter() - self.started, 2),
+                "env_steps": self.stats.env_steps,
+                "learner_steps": int(self.stats.learner.get("learner_steps", 0)),
+                "return": round(self.stats.eval["eval_return"], 2),
+                "success_rate": self.stats.eval["eval_success_rate"],
+            })
         except RayActorError:
             log.warning("evaluator failed; evaluation stops")
             return None
@@ -297,6 +305,7 @@ class TrainingRun:
             "dropped_steps": self.stats.dropped_steps,
             "worker_steps": {str(k): v for k, v in sorted(self.stats.worker_steps.items())},
             "robot_errors": self.stats.robot_errors,
+            "eval_history": self.stats.eval_history,
             "server_nodes": [] if self.supervision is None else self.supervision.server_nodes(),
             "final_status_counts": dict(Counter(self.stats.statuses)),
             "logdir": str(self.run_dir),
