@@ -10,6 +10,7 @@ from typing import Any
 import ray
 
 from robogym_ray.actors import remote
+from robogym_ray.actors.policy import FaultCause
 from robogym_ray.actors.provider import SupervisorServerProvider
 from robogym_ray.actors.supervisor import SupervisorConfig
 from robogym_ray.actors.train_config import TrainConfig
@@ -52,7 +53,8 @@ class Supervision:
             servers = ray.get(self.actor.status.remote(), timeout=10)
         except Exception:  # noqa: BLE001 - a dead supervisor must not stop the run's logging
             return {}
-        counts: Counter[str] = Counter()
+        # Every cause appears (zeros too), so TensorBoard shows the five faults from the start.
+        counts: Counter[str] = Counter({cause.value: 0 for cause in FaultCause})
         for server in servers:
             counts.update(server.get("restarts", {}))
         return dict(counts)

@@ -34,12 +34,26 @@ def _quiet_stdout() -> Iterator[None]:
         os.close(saved)
 
 
+class _BoundClient(BulletClient):
+    """``BulletClient`` that binds each PyBullet function once instead of on every call.
+
+    ``BulletClient.__getattr__`` builds a new ``functools.partial`` per call, which costs
+    ~0.5 µs x ~60 calls per MiR100 action cycle; the bound partial never changes for a client.
+    """
+
+    def __getattr__(self, name: str):  # type: ignore[no-untyped-def]
+        attribute = super().__getattr__(name)
+        if callable(attribute):
+            object.__setattr__(self, name, attribute)
+        return attribute
+
+
 class PyBulletWorld:
     """One PyBullet physics client with named bodies."""
 
     def __init__(self, timestep: float = 1.0 / 240.0, gravity: float = -9.81) -> None:
         with _quiet_stdout():
-            self.client = BulletClient(connection_mode=p.DIRECT)
+            self.client = _BoundClient(connection_mode=p.DIRECT)
         self.timestep = timestep
         self.client.setTimeStep(timestep)
         self.client.setGravity(0.0, 0.0, gravity)

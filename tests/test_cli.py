@@ -1,0 +1,58 @@
+"""`robogym-ray` entry point: help for every command, clear errors and exit codes."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from robogym_ray.cli import COMMANDS, main
+
+
+def run_cli(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "robogym_ray.cli", *args],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+
+
+def test_help_lists_every_command(capsys: pytest.CaptureFixture) -> None:
+    with pytest.raises(SystemExit) as info:
+        main(["--help"])
+    assert info.value.code == 0
+    out = capsys.readouterr().out
+    assert all(name in out for name in COMMANDS)
+
+
+@pytest.mark.parametrize("command", sorted(COMMANDS))
+def test_each_command_has_help(command: str, capsys: pytest.CaptureFixture) -> None:
+    with pytest.raises(SystemExit) as info:
+        main([command, "--help"])
+    assert info.value.code == 0
+    assert "--" in capsys.readouterr().out  # documented options
+
+
+def test_train_rejects_an_unknown_task_before_starting_ray() -> None:
+    out = run_cli("train", "--task", "NoSuchTask-v9", "--total-steps", "10")
+    assert out.returncode == 2
+    assert "NoSuchTask-v9" in out.stderr and "navigation" in out.stderr
+    assert "Started a local Ray" not in out.stderr
+
+
+def test_train_rejects_a_malformed_config(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps({"train": {"workerz": 2}}))
+    out = run_cli("train", "--config", str(bad))
+    assert out.returncode == 2 and "workerz" in out.stderr
+    bad.write_text(json.dumps({"d4pg": {"num_atoms": 1}, "train": {"task": "pendulum"}}))
+    out = run_cli("train", "--config", str(bad), "--total-steps", "10")
+    assert out.returncode == 2 and "num_atoms" in out.stderr
+    out = run_cli("train", "--workers", "-1")
+    assert out.returncode == 2 and "workers" in out.stderr
+    out = run_cli("train", "--real-robot", "nohostport")
+    assert out.returncode == 2 and "HOST:PORT" in out.stderr
