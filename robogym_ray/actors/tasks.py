@@ -31,9 +31,10 @@ TASKS: dict[str, TaskPreset] = {
         "RoboGymRay/ObstacleAvoidanceMir100Sim-v0",
         {"v_min": -300.0, "v_max": 450.0, "layer_norm": True, "min_replay_size": 500},
     ),
+    # Positioning: progress 50/m over <= ~2.4 m, +100 at the goal, -200 on collision.
     "positioning": TaskPreset(
         "RoboGymRay/EndEffectorPositioningUR10Sim-v0",
-        {"v_min": -150.0, "v_max": 150.0, "layer_norm": True, "min_replay_size": 500},
+        {"v_min": -250.0, "v_max": 250.0, "layer_norm": True, "min_replay_size": 500},
     ),
     # Pendulum: the preset proven by benchmarks/pendulum.py (one source: run_local.PRESETS).
     "pendulum": TaskPreset("Pendulum-v1", PRESETS["Pendulum-v1"]),
