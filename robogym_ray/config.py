@@ -86,8 +86,11 @@ def add_config_args(
             origin is not None and typing.get_origin(_scalar_type(tp)) is tuple
         ):
             inner = _scalar_type(_scalar_type(tp))
+            # "extend": a repeated flag adds to the list instead of replacing it.
             parser.add_argument(
-                flag, dest=f.name, type=inner, nargs="+", default=default, help=help_text
+                flag, dest=f.name, type=inner, nargs="+", action="extend",
+                default=default if default is argparse.SUPPRESS else list(default),
+                help=help_text,
             )
         else:
             parser.add_argument(

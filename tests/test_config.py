@@ -22,6 +22,10 @@ def test_field_docstrings_become_help() -> None:
         ServeConfig, parser.parse_args(["--port", "7", "--option", "a=1", "b:=2"])
     )
     assert cfg.port == 7 and cfg.option == ("a=1", "b:=2")
+    # A repeated list flag adds to the list (it must not silently drop the first ones).
+    again = parser.parse_args(["--option", "a=1", "--option", "b=2", "c=3"])
+    assert config_from_args(ServeConfig, again).option == ("a=1", "b=2", "c=3")
+    assert config_from_args(ServeConfig, parser.parse_args([])).option == ()
 
 
 def test_config_file_unknown_key_and_bad_json(tmp_path: Path) -> None:

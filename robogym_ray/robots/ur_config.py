@@ -58,8 +58,9 @@ class URConfig:
     """ur3 | ur3e | ur5 | ur5e | ur10 | ur10e | ur16e."""
     scene: str = DEFAULT_SCENE
     """empty | tabletop | tabletop_no_collision (see SCENES / WORLDS)."""
-    rs_mode: str = "1object"
-    """only_robot | 1object | 1moving2points | 2objects2points: which state keys are served."""
+    rs_mode: str = "only_robot"
+    """only_robot | 1object | 1moving2points | 2objects2points: which state keys are served
+    (default as ur_robot_server.launch: rs_mode false -> target_mode only_robot)."""
     action_mode: str = "abs_pos"
     """abs_pos: actions are absolute joint targets; delta_pos: targets = current + action."""
     reference_frame: str = "base_link"

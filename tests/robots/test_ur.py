@@ -198,7 +198,7 @@ def test_ground_contact_latches_and_set_state_clears():
     [("tabletop_sphere50.world", 1.0), ("tabletop_sphere50_no_collision.world", 0.0)],
 )
 def test_object_sphere_collides_only_in_its_world(world, expected):
-    robot = _robot("ur5", world_name=world)
+    robot = _robot("ur5", world_name=world, rs_mode="1object")
     try:
         ee = _state(robot).state_dict
         at_ee = {f"object_0_{c}": ee[f"ee_to_ref_translation_{c}"] for c in "xyz"}

@@ -52,7 +52,11 @@ def test_robo_gym_avoidance_cmd():
 def test_defaults():
     cfg = parse_options("ur10", None, {})
     assert cfg == URConfig(model="ur10")
-    assert (cfg.scene, cfg.rs_mode, cfg.action_mode) == ("empty", "1object", "abs_pos")
+    assert (cfg.scene, cfg.rs_mode, cfg.action_mode) == (
+        "empty",
+        "only_robot",
+        "abs_pos",
+    )  # as the launch file
     assert (cfg.action_cycle, cfg.actuation_cycle, cfg.repeat) == (0.04, 0.008, None)
     robot = make_robot("ur10")
     try:
