@@ -20,6 +20,9 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "manager": ("robogym_ray.actors.manager", "Serve robo-gym's server manager (supervised)."),
     "resume": ("robogym_ray.actors.resume", "Resume a paused real robot (operator)."),
     "train": ("robogym_ray.actors.train_cmd", "Train D4PG with rollout workers on Ray."),
+    "evaluate": ("robogym_ray.evaluation", "Evaluate a policy for N episodes (success rates)."),
+    "export": ("robogym_ray.export", "Export a checkpoint's policy as TorchScript + JSON."),
+    "run-policy": ("robogym_ray.run_policy", "Drive a robot server with an exported policy."),
 }
 
 

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 from robogym_ray.config import add_config_args, config_from_args
 from robogym_ray.errors import ConfigError
+from robogym_ray.robots.emulation import EmulationConfig
 from robogym_ray.robots.registry import ROBOTS
 from robogym_ray.robots.server import start_robot_server
 
@@ -33,6 +34,8 @@ class ServeConfig:
     """TCP port; 0 picks a free one (printed on stdout)."""
     real_time: bool = False
     """Pace the simulation against the wall clock (emulating a real robot's driver)."""
+    emulate_hardware: bool = False
+    """Serve an emulated real robot: latency, sensor noise, dynamics differences (--emu-*)."""
     seed: int | None = None
     """Seed of the robot's own randomness (sensor noise, object trajectories)."""
     token: str | None = None
@@ -63,6 +66,7 @@ def is_loopback(host: str) -> bool:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_config_args(parser, ServeConfig)
+    add_config_args(parser, EmulationConfig, prefix="emu-")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -84,6 +88,7 @@ def run(args: argparse.Namespace) -> int:
         port=cfg.port,
         real_time=cfg.real_time,
         token=token,
+        emulation=config_from_args(EmulationConfig, args) if cfg.emulate_hardware else None,
     )
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):

@@ -18,6 +18,7 @@ import time
 from collections.abc import Mapping, Sequence
 from concurrent import futures
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import grpc
 import numpy as np
@@ -29,6 +30,9 @@ from robogym_ray.robots.base import SimRobot, StateRequest, StateSnapshot
 from robogym_ray.robots.command_handler import CommandHandler
 from robogym_ray.robots.registry import make_robot
 from robogym_ray.robots.state_buffer import StateBuffer
+
+if TYPE_CHECKING:
+    from robogym_ray.robots.emulation import EmulationConfig
 
 log = logging.getLogger(__name__)
 
@@ -267,9 +271,18 @@ def start_robot_server(
     real_time: bool = False,
     token: str | None = None,
     max_workers: int = 10,
+    emulation: EmulationConfig | None = None,
 ) -> RobotServerHandle:
-    """Build the robot and serve it on ``host:port`` (port 0 = a free port); returns at once."""
-    sim_robot = make_robot(robot, scene=scene, seed=seed, options=options)
+    """Build the robot and serve it on ``host:port`` (port 0 = a free port); returns at once.
+
+    ``emulation`` serves an emulated real robot (latency, noise, dynamics differences; see
+    ``robots.emulation``) instead of the plain simulation.
+    """
+    sim_robot: SimRobot = make_robot(robot, scene=scene, seed=seed, options=options)
+    if emulation is not None:
+        from robogym_ray.robots.emulation import emulate
+
+        sim_robot = emulate(sim_robot, emulation, seed=seed)
     core = RobotServerCore(sim_robot, real_time=real_time)
     interceptors = [_TokenInterceptor(token)] if token else []
     server = grpc.server(

@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from robogym_ray.learner.config import D4PGConfig, field_docs
+from robogym_ray.config import field_docs
+from robogym_ray.learner.config import D4PGConfig
 from robogym_ray.learner.run_local import PRESETS, build_parser, parse_args
 
 

@@ -1,0 +1,61 @@
+"""Final evaluation of a trained policy: the paper's success / collision / timeout table.
+
+    # 100 episodes in simulation (env id from the run's config.json)
+    python experiments/evaluate.py runs/paper/positioning/checkpoints/learner.pt \
+        --out results/pos-sim
+    # on an emulated real robot started for the task (real-time pacing, latency, noise)
+    python experiments/evaluate.py runs/paper/navigation/checkpoints/learner.pt --emulate \
+        --out results/nav-emulated
+    # on a robot server that is already running (real robot or `robogym-ray serve ...`)
+    python experiments/evaluate.py policy.pt --rs-address 10.0.0.5:50051 --out results/nav-real
+
+Writes OUT/evaluation.json (summary + per-episode status and target) and OUT/evaluation.md.
+The logic is ``robogym_ray.evaluation`` (also ``robogym-ray evaluate``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import sys
+from collections.abc import Sequence
+from dataclasses import replace
+
+from robogym_ray.config import add_config_args, config_from_args
+from robogym_ray.errors import ConfigError
+from robogym_ray.evaluation import EvaluationConfig, emulated_server, evaluate, write_result
+from robogym_ray.export import load_policy
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("policy", help="learner.pt checkpoint or exported policy.")
+    add_config_args(parser, EvaluationConfig)
+    parser.add_argument("--emulate", action="store_true",
+                        help="Start an emulated real robot for the task and evaluate on it.")
+    parser.add_argument("--serve-seed", type=int, default=0, help="Seed of the emulated robot.")
+    parser.add_argument("--serve-arg", action="append", default=[],
+                        help="Extra `robogym-ray serve` flag for --emulate (repeatable), "
+                             "e.g. --serve-arg=--emu-latency-ticks=2.")
+    args = parser.parse_args(argv)
+    cfg = config_from_args(EvaluationConfig, args)
+    with contextlib.ExitStack() as stack:
+        if args.emulate:
+            env_id = cfg.env_id or load_policy(args.policy).info.env_id
+            if env_id is None:
+                raise ConfigError("--emulate needs --env-id (the policy does not name its env)")
+            address = stack.enter_context(
+                emulated_server(env_id, args.serve_seed, args.serve_arg)
+            )
+            cfg = replace(cfg, rs_address=address)
+        result = evaluate(args.policy, cfg)
+    if cfg.out:
+        write_result(result, cfg.out)
+    print(result.to_markdown())
+    print(json.dumps(result.summary()), flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

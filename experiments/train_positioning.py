@@ -1,0 +1,28 @@
+"""Problem 2 of the paper: UR10 end-effector positioning (D4PG).
+
+    python experiments/train_positioning.py           # full run: configs/positioning.json
+    python experiments/train_positioning.py --total-steps 20000 --workers 2 --logdir runs/short
+    python experiments/train_positioning.py --smoke   # CI plumbing check, ~1 min
+
+Hyperparameters: experiments/configs/positioning.json (the format `robogym-ray train --config`
+reads).
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from robogym_ray.reproduce import train_main
+
+CONFIG = Path(__file__).resolve().parent / "configs" / "positioning.json"
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    train_main(CONFIG, argv, description=__doc__.splitlines()[0])
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

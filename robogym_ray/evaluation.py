@@ -1,0 +1,308 @@
+"""Final evaluations (the paper's table): N greedy episodes of a trained policy.
+
+The policy is a learner checkpoint or an exported TorchScript file (``robogym_ray.export``); the
+env is a registered id with its own simulated server, or a running robot server given by
+address (a real robot or ``robogym-ray serve --real-time --emulate-hardware``), driven through
+the task's ``Rob`` variant (``variant="rob"``, the real-robot contract: no sim-only checks, the
+MiR100 starts where it stands) or its ``Sim`` variant pinned to that server (``variant="sim"``:
+resets place robot and obstacles as in training, as an operator would). With ``via_actor`` the
+Rob env goes through a real-robot actor (safety filter, pause on errors) as in training.
+
+Result: counts and rates of success / collision / timeout (anything else is ``other``) and, per
+episode, the seed, final status, return, length and target (the UR figure plots the targets).
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from collections import Counter
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from robogym_ray.errors import ConfigError
+
+TIMEOUT_STATUSES = ("max_steps_exceeded", "truncated")
+CATEGORIES = ("success", "collision", "timeout", "other")
+
+
+@dataclass(frozen=True)
+class EvaluationConfig:
+    """What ``robogym-ray evaluate`` runs."""
+
+    env_id: str | None = None
+    """Env id (Sim or Rob; either picks the task); default: the policy's own (sidecar or run)."""
+    rs_address: str | None = None
+    """HOST:PORT of a running robot server (real or emulated); default: a simulated one."""
+    variant: str = "rob"
+    """With --rs-address: 'rob' (real-robot contract) or 'sim' (sim resets on that server)."""
+    episodes: int = 100
+    """Episodes to run."""
+    seed: int = 1000
+    """Episode i resets with seed + i."""
+    max_steps: int | None = None
+    """Episode step limit (default: the task's)."""
+    token: str | None = None
+    """Shared token of the robot server, if it wants one."""
+    via_actor: bool = False
+    """Drive the robot server through a real-robot actor on a local Ray (safety filter)."""
+    out: str | None = None
+    """Directory for evaluation.json and evaluation.md (default: print only)."""
+
+    def __post_init__(self) -> None:
+        if self.variant not in ("rob", "sim"):
+            raise ConfigError(f"variant must be 'rob' or 'sim', got {self.variant!r}")
+        if self.episodes < 1:
+            raise ConfigError(f"episodes must be >= 1, got {self.episodes}")
+        if self.via_actor and (self.rs_address is None or self.variant != "rob"):
+            raise ConfigError("via_actor needs --rs-address and --variant rob")
+
+
+@dataclass(frozen=True)
+class EpisodeRecord:
+    index: int
+    seed: int
+    final_status: str
+    ret: float
+    length: int
+    target: list[float] | None
+    """The episode's target (MiR100: x, y, yaw; UR: x, y, z in base_link), if the task has one."""
+
+
+@dataclass
+class EvaluationResult:
+    env_id: str
+    rs_address: str | None
+    policy: str
+    episodes: list[EpisodeRecord] = field(default_factory=list)
+    wall_s: float = 0.0
+
+    @property
+    def counts(self) -> dict[str, int]:
+        counts = Counter(category(e.final_status) for e in self.episodes)
+        return {c: counts.get(c, 0) for c in CATEGORIES}
+
+    @property
+    def rates(self) -> dict[str, float]:
+        n = max(1, len(self.episodes))
+        return {f"{c}_rate": v / n for c, v in self.counts.items()}
+
+    def summary(self) -> dict[str, Any]:
+        returns = [e.ret for e in self.episodes]
+        return {
+            "env_id": self.env_id, "rs_address": self.rs_address, "policy": self.policy,
+            "n_episodes": len(self.episodes), "counts": self.counts, "rates": self.rates,
+            "statuses": dict(Counter(e.final_status for e in self.episodes)),
+            "mean_return": float(np.mean(returns)) if returns else 0.0,
+            "mean_length": float(np.mean([e.length for e in self.episodes] or [0])),
+            "wall_s": round(self.wall_s, 2),
+        }  # fmt: skip
+
+    def to_dict(self) -> dict[str, Any]:
+        return {**self.summary(), "episodes": [asdict(e) for e in self.episodes]}
+
+    def to_markdown(self) -> str:
+        s, n = self.summary(), len(self.episodes)
+        cells = [f"{s['counts'][c]} ({100 * s['rates'][c + '_rate']:.0f} %)" for c in CATEGORIES]
+        where = self.rs_address or "simulation"
+        return "\n".join([
+            "| env | robot server | episodes | success | collision | timeout | other | "
+            "mean return |",
+            "|---|---|---|---|---|---|---|---|",
+            f"| {self.env_id} | {where} | {n} | {' | '.join(cells)} | {s['mean_return']:.1f} |",
+        ])  # fmt: skip
+
+
+def category(status: str) -> str:
+    if status in ("success", "collision"):
+        return status
+    return "timeout" if status in TIMEOUT_STATUSES else "other"
+
+
+def variant_id(env_id: str, variant: str) -> str:
+    """``...Sim-v0`` / ``...Rob-v0`` of the same task."""
+    for suffix in ("Sim-v0", "Rob-v0"):
+        if env_id.endswith(suffix):
+            return env_id[: -len(suffix)] + variant.capitalize() + "-v0"
+    raise ConfigError(f"{env_id} is not a RoboGymRay <Task><Robot>Sim/Rob-v0 id")
+
+
+def serve_args(env_id: str) -> list[str]:
+    """``robogym-ray serve`` arguments for the robot server a task needs (robot, scene, options).
+
+    Add ``--real-time --emulate-hardware`` for the emulated real robot of that task.
+    """
+    import gymnasium as gym
+
+    import robogym_ray.envs  # noqa: F401 - registers the ids
+
+    env = gym.make(variant_id(env_id, "sim"))  # no server starts before reset
+    try:
+        robot, scene, options = env.unwrapped.server_spec()  # type: ignore[attr-defined]
+    finally:
+        env.close()
+    args = ["--robot", robot] + (["--scene", scene] if scene else [])
+    if options:
+        args += ["--option", *(f"{k}={v}" for k, v in options.items())]
+    return args
+
+
+@contextlib.contextmanager
+def emulated_server(
+    env_id: str, seed: int | None = None, extra: Sequence[str] = (), real_time: bool = True
+) -> Iterator[str]:
+    """``robogym-ray serve --emulate-hardware`` for ``env_id``'s robot in a child process.
+
+    Yields its address; the process is stopped (SIGTERM) on exit. ``extra``: more serve flags,
+    e.g. ``["--emu-latency-ticks", "2"]``.
+    """
+    cmd = [sys.executable, "-m", "robogym_ray.cli", "serve", "--emulate-hardware",
+           *(["--real-time"] if real_time else []), *serve_args(env_id),
+           *(["--seed", str(seed)] if seed is not None else []), *extra]  # fmt: skip
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    try:
+        line = proc.stdout.readline().strip() if proc.stdout else ""
+        if not line.startswith("listening on "):
+            raise ConfigError(f"emulated server did not start ({' '.join(cmd)}): {line!r}")
+        yield line.removeprefix("listening on ")
+    finally:
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGTERM)
+            try:
+                proc.wait(timeout=20)
+            except subprocess.TimeoutExpired:
+                proc.kill()  # our own child, by its handle
+                proc.wait()
+
+
+def run_episodes(
+    policy: Callable[[np.ndarray], np.ndarray], env: Any, episodes: int, seed: int
+) -> Iterator[EpisodeRecord]:
+    """Greedy episodes; ``policy`` maps an observation to an action in [-1, 1]."""
+    from robogym_ray.learner.actor import to_env_action
+
+    low = env.action_space.low.astype(np.float64)
+    high = env.action_space.high.astype(np.float64)
+    for i in range(episodes):
+        obs, _ = env.reset(seed=seed + i)
+        target = getattr(env.unwrapped, "target", None)
+        ret, length, done, info = 0.0, 0, False, {}
+        truncated = False
+        while not done:
+            action = np.clip(policy(obs), -1.0, 1.0)
+            obs, reward, terminated, truncated, info = env.step(to_env_action(action, low, high))
+            ret += float(reward)
+            length += 1
+            done = terminated or truncated
+        status = str(info.get("final_status", "truncated" if truncated else "terminated"))
+        yield EpisodeRecord(
+            i, seed + i, status, ret, length,
+            None if target is None else [float(v) for v in np.ravel(target)],
+        )  # fmt: skip
+
+
+@contextlib.contextmanager
+def real_robot_actor(env_id: str, address: str, token: str | None) -> Iterator[Any]:
+    """A real-robot actor on ``address`` (on a new local Ray if none); yields a client factory."""
+    import ray
+
+    from robogym_ray.actors import remote
+    from robogym_ray.actors.real_client import RealRobotClientFactory
+    from robogym_ray.actors.tasks import safety_for
+
+    started = not ray.is_initialized()
+    if started:
+        ray.init(num_cpus=1, include_dashboard=False, namespace=remote.NAMESPACE,
+                 log_to_driver=False)
+    name = f"eval-real-{os.getpid()}-{time.monotonic_ns()}"
+    actor = remote.start_real_robot(name, address, safety_for(env_id), token=token)
+    try:
+        yield RealRobotClientFactory(name, namespace=remote.NAMESPACE)
+    finally:
+        ray.kill(actor)
+        if started:
+            ray.shutdown()
+
+
+def evaluate(policy_path: str | Path, cfg: EvaluationConfig) -> EvaluationResult:
+    """Run ``cfg.episodes`` episodes of the policy at ``policy_path`` (see the module docstring)."""
+    import gymnasium as gym
+
+    import robogym_ray.envs  # noqa: F401 - registers the ids
+    from robogym_ray.export import load_policy
+
+    policy = load_policy(policy_path)
+    env_id = cfg.env_id or policy.info.env_id
+    if env_id is None:
+        raise ConfigError(f"no env id known for {policy_path}: pass --env-id")
+    kwargs: dict[str, Any] = {"token": cfg.token}
+    if cfg.max_steps is not None:
+        kwargs["max_steps"] = cfg.max_steps
+    if cfg.rs_address:
+        env_id = variant_id(env_id, cfg.variant)
+        kwargs["rs_address"] = cfg.rs_address
+    else:
+        env_id = variant_id(env_id, "sim")
+    with contextlib.ExitStack() as stack:
+        if cfg.via_actor:
+            assert cfg.rs_address is not None
+            kwargs["client_factory"] = stack.enter_context(
+                real_robot_actor(env_id, cfg.rs_address, cfg.token)
+            )
+        env = gym.make(env_id, **kwargs)
+        stack.callback(env.close)
+        _check_dims(env, policy.info.obs_dim, policy.info.act_dim, env_id)
+        result = EvaluationResult(env_id, cfg.rs_address, str(policy_path))
+        start = time.perf_counter()
+        result.episodes = list(run_episodes(policy, env, cfg.episodes, cfg.seed))
+        result.wall_s = time.perf_counter() - start
+    return result
+
+
+def _check_dims(env: Any, obs_dim: int, act_dim: int, env_id: str) -> None:
+    got = (env.observation_space.shape[0], env.action_space.shape[0])
+    if got != (obs_dim, act_dim):
+        raise ConfigError(
+            f"the policy maps {obs_dim} observations to {act_dim} actions; {env_id} has "
+            f"{got[0]} and {got[1]}"
+        )
+
+
+def write_result(result: EvaluationResult, out: str | Path) -> tuple[Path, Path]:
+    """``out/evaluation.json`` (summary and episodes) and ``out/evaluation.md`` (the table)."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    json_path, md_path = out / "evaluation.json", out / "evaluation.md"
+    json_path.write_text(json.dumps(result.to_dict(), indent=2))
+    md_path.write_text(result.to_markdown() + "\n")
+    return json_path, md_path
+
+
+# -- CLI: robogym-ray evaluate -----------------------------------------------------------------
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from robogym_ray.config import add_config_args
+
+    parser.add_argument("policy", help="learner.pt checkpoint or exported policy (with .json).")
+    add_config_args(parser, EvaluationConfig)
+
+
+def run(args: argparse.Namespace) -> int:
+    from robogym_ray.config import config_from_args
+
+    cfg = config_from_args(EvaluationConfig, args)
+    result = evaluate(args.policy, cfg)
+    if cfg.out:
+        write_result(result, cfg.out)
+    print(result.to_markdown())
+    print(json.dumps(result.summary()), flush=True)
+    return 0

@@ -1,0 +1,180 @@
+"""Policies out of training: from a learner checkpoint, and as TorchScript for the robot PC.
+
+``robogym-ray export CHECKPOINT OUT`` writes ``OUT`` (a TorchScript module: float32 observations
+``(batch, obs_dim)`` -> actions in [-1, 1] ``(batch, act_dim)``) and ``OUT.json`` next to it
+(``sidecar_path``): format, dimensions, env id, the env's action bounds and where it came from.
+The robot PC needs only torch to run it (no robogym_ray, no Ray); ``robogym-ray run-policy``
+drives a robot server with it.
+
+A checkpoint is ``learner.pt`` as ``D4PGLearner.save`` writes it; the policy's architecture is
+read back from its weights (hidden sizes, LayerNorm), so no config is needed to load it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from torch import nn
+
+from robogym_ray.errors import ConfigError
+
+FORMAT = "robogym-ray-policy/torchscript-v1"
+
+
+@dataclass(frozen=True)
+class PolicyInfo:
+    """What the sidecar JSON holds."""
+
+    obs_dim: int
+    act_dim: int
+    policy_hidden: tuple[int, ...]
+    layer_norm: bool
+    env_id: str | None = None
+    action_low: tuple[float, ...] | None = None
+    action_high: tuple[float, ...] | None = None
+    source: str = ""
+    format: str = FORMAT
+
+
+def sidecar_path(policy_file: str | Path) -> Path:
+    """``policy.pt`` -> ``policy.pt.json``."""
+    return Path(str(policy_file) + ".json")
+
+
+def policy_from_state_dict(state: dict[str, torch.Tensor]) -> tuple[nn.Module, PolicyInfo]:
+    """Rebuild ``networks.Policy`` from its weights (architecture inferred, strict load)."""
+    from robogym_ray.learner.networks import Policy
+
+    layers: dict[int, torch.Tensor] = {}
+    for key, value in state.items():
+        match = re.fullmatch(r"net\.(\d+)\.weight", key)
+        if match is None:
+            continue
+        layers[int(match.group(1))] = value
+    linear = [w for _, w in sorted(layers.items()) if w.dim() == 2]
+    if not linear:
+        raise ConfigError(f"not a policy state dict: no net.<i>.weight matrices in {sorted(state)}")
+    layer_norm = any(w.dim() == 1 for w in layers.values())
+    hidden = tuple(int(w.shape[0]) for w in linear[:-1])
+    obs_dim, act_dim = int(linear[0].shape[1]), int(linear[-1].shape[0])
+    policy = Policy(obs_dim, act_dim, hidden, layer_norm)
+    policy.load_state_dict(state)
+    policy.eval().requires_grad_(False)
+    return policy, PolicyInfo(obs_dim, act_dim, hidden, layer_norm)
+
+
+def load_checkpoint_policy(checkpoint: str | Path) -> tuple[nn.Module, PolicyInfo]:
+    """The online policy of a ``learner.pt`` (only the policy weights are used)."""
+    try:
+        state = torch.load(checkpoint, map_location="cpu", weights_only=True)
+    except (OSError, RuntimeError, EOFError) as exc:
+        raise ConfigError(f"cannot read checkpoint {checkpoint}: {exc}") from None
+    try:
+        policy_state = state["nets"]["policy"]
+    except (KeyError, TypeError):
+        raise ConfigError(
+            f"{checkpoint} is not a D4PGLearner checkpoint (no nets.policy)"
+        ) from None
+    policy, info = policy_from_state_dict(policy_state)
+    return policy, PolicyInfo(**{**asdict(info), "source": str(checkpoint)})
+
+
+def env_id_of_run(checkpoint: str | Path) -> str | None:
+    """The env id of the training run a ``RUN/checkpoints/learner.pt`` belongs to, if known."""
+    config = Path(checkpoint).resolve().parent.parent / "config.json"
+    try:
+        task = json.loads(config.read_text())["train"]["task"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    from robogym_ray.actors.tasks import resolve_task
+
+    try:
+        return resolve_task(task).env_id
+    except ConfigError:
+        return None
+
+
+def action_bounds(env_id: str) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """The env's action Box (making the env starts no server: that happens on reset)."""
+    import gymnasium as gym
+
+    import robogym_ray.envs  # noqa: F401 - registers the ids
+
+    env = gym.make(env_id)
+    try:
+        space = env.action_space
+        return tuple(map(float, space.low)), tuple(map(float, space.high))  # type: ignore[attr-defined]
+    finally:
+        env.close()
+
+
+def export_policy(checkpoint: str | Path, out: str | Path, env_id: str | None = None) -> PolicyInfo:
+    """Write the checkpoint's policy as TorchScript to ``out`` plus its sidecar JSON."""
+    policy, info = load_checkpoint_policy(checkpoint)
+    env_id = env_id or env_id_of_run(checkpoint)
+    low, high = action_bounds(env_id) if env_id else (None, None)
+    info = PolicyInfo(**{**asdict(info), "env_id": env_id, "action_low": low,
+                         "action_high": high})
+    # Tracing is exact here: the policy is a fixed MLP with no data-dependent control flow.
+    example = torch.zeros(1, info.obs_dim)
+    scripted = torch.jit.trace(policy, example)
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    scripted.save(str(out))
+    sidecar_path(out).write_text(json.dumps(asdict(info), indent=2))
+    return info
+
+
+def load_exported(path: str | Path) -> tuple[torch.jit.ScriptModule, PolicyInfo]:
+    """An exported policy and its sidecar."""
+    try:
+        data = json.loads(sidecar_path(path).read_text())
+    except (OSError, ValueError) as exc:
+        raise ConfigError(f"cannot read the sidecar of {path}: {exc}") from None
+    if data.get("format") != FORMAT:
+        raise ConfigError(f"{sidecar_path(path)}: format {data.get('format')!r}, expected {FORMAT}")
+    data = {k: tuple(v) if isinstance(v, list) else v for k, v in data.items()}
+    module = torch.jit.load(str(path), map_location="cpu")
+    module.eval()
+    return module, PolicyInfo(**data)
+
+
+class PolicyFunction:
+    """``obs -> action in [-1, 1]`` (float32, one observation) for any loaded policy."""
+
+    def __init__(self, module: nn.Module, info: PolicyInfo) -> None:
+        self.module, self.info = module, info
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        with torch.inference_mode():
+            batch = torch.as_tensor(np.asarray(obs, dtype=np.float32)).reshape(1, -1)
+            return self.module(batch)[0].numpy().astype(np.float32)
+
+
+def load_policy(path: str | Path) -> PolicyFunction:
+    """An exported policy (it has a sidecar) or a learner checkpoint."""
+    if sidecar_path(path).exists():
+        return PolicyFunction(*load_exported(path))
+    module, info = load_checkpoint_policy(path)
+    return PolicyFunction(module, PolicyInfo(**{**asdict(info), "env_id": env_id_of_run(path)}))
+
+
+# -- CLI: robogym-ray export -------------------------------------------------------------------
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("checkpoint", help="learner.pt written by training (RUN/checkpoints/).")
+    parser.add_argument("out", help="TorchScript file to write; its sidecar is OUT.json.")
+    parser.add_argument("--env-id", default=None,
+                        help="Env id the policy drives (default: from the run's config.json).")
+
+
+def run(args: argparse.Namespace) -> int:
+    info: Any = export_policy(args.checkpoint, args.out, args.env_id)
+    print(json.dumps({"out": args.out, "sidecar": str(sidecar_path(args.out)), **asdict(info)}))
+    return 0

@@ -1,0 +1,69 @@
+"""Export: checkpoint -> TorchScript + sidecar -> load -> the same actions as the policy."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from robogym_ray.cli import main as cli_main
+from robogym_ray.errors import ConfigError
+from robogym_ray.export import (
+    FORMAT,
+    export_policy,
+    load_checkpoint_policy,
+    load_exported,
+    load_policy,
+    sidecar_path,
+)
+from tests.experiments.conftest import POSITIONING, save_learner
+
+
+def test_exported_policy_acts_like_the_learner_policy(positioning_checkpoint, tmp_path) -> None:
+    path, learner = positioning_checkpoint
+    out = tmp_path / "export" / "policy.pt"
+    info = export_policy(path, out, env_id=POSITIONING)
+    assert out.exists() and sidecar_path(out).exists()
+    assert (info.obs_dim, info.act_dim, info.policy_hidden) == (15, 6, (32, 16))
+    assert info.layer_norm is True
+    assert info.action_low == (-1.0,) * 6 and info.format == FORMAT
+    module, loaded = load_exported(out)
+    assert loaded == info
+    obs = torch.as_tensor(np.random.default_rng(0).normal(size=(64, 15)), dtype=torch.float32)
+    with torch.no_grad():
+        expected = learner.policy(obs)
+    torch.testing.assert_close(module(obs), expected, rtol=0, atol=1e-6)
+    # One observation at a time, as the robot PC calls it.
+    fn = load_policy(out)
+    np.testing.assert_allclose(fn(obs[3].numpy()), expected[3].numpy(), atol=1e-6)
+
+
+@pytest.mark.parametrize("layer_norm", [False, True])
+def test_checkpoint_architecture_is_read_from_the_weights(tmp_path, layer_norm: bool) -> None:
+    save_learner(tmp_path / "l.pt", 20, 2, layer_norm=layer_norm)
+    _, info = load_checkpoint_policy(tmp_path / "l.pt")
+    assert (info.obs_dim, info.act_dim, info.policy_hidden) == (20, 2, (32, 16))
+    assert info.layer_norm is layer_norm
+
+
+def test_bad_files_are_config_errors(tmp_path) -> None:
+    bad = tmp_path / "bad.pt"
+    torch.save({"something": 1}, bad)
+    with pytest.raises(ConfigError, match="not a D4PGLearner checkpoint"):
+        load_checkpoint_policy(bad)
+    with pytest.raises(ConfigError, match="cannot read checkpoint"):
+        load_checkpoint_policy(tmp_path / "missing.pt")
+
+
+def test_env_id_comes_from_the_run_directory(tmp_path, capsys) -> None:
+    run = tmp_path / "run"
+    (run / "checkpoints").mkdir(parents=True)
+    (run / "config.json").write_text(json.dumps({"train": {"task": "positioning"}, "d4pg": {}}))
+    save_learner(run / "checkpoints" / "learner.pt", 15, 6)
+    checkpoint = run / "checkpoints" / "learner.pt"
+    assert cli_main(["export", str(checkpoint), str(tmp_path / "p.pt")]) == 0
+    printed = json.loads(capsys.readouterr().out)
+    assert printed["env_id"] == POSITIONING
+    assert load_policy(run / "checkpoints" / "learner.pt").info.env_id == POSITIONING

@@ -1,0 +1,79 @@
+"""CI smoke versions of the experiment scripts (tiny runs: plumbing, not learning)."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+from pathlib import Path
+from types import ModuleType
+
+import pytest
+
+from robogym_ray.reproduce import build_parser, experiment_configs
+from tests.experiments.conftest import POSITIONING, save_learner
+
+EXPERIMENTS = Path(__file__).resolve().parents[2] / "experiments"
+
+
+def script(name: str) -> ModuleType:
+    spec = importlib.util.spec_from_file_location(f"experiments_{name}", EXPERIMENTS / f"{name}.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.mark.parametrize("name", ["navigation", "positioning"])
+def test_configs_load_and_flags_override_them(name: str) -> None:
+    config = EXPERIMENTS / "configs" / f"{name}.json"
+    args = build_parser(config, "").parse_args(["--total-steps", "123", "--workers", "1"])
+    train, d4pg = experiment_configs(args)
+    assert (train.total_steps, train.workers, train.run_name) == (123, 1, name)
+    assert d4pg["layer_norm"] is True
+    from robogym_ray.actors.tasks import d4pg_for, resolve_task
+
+    d4pg_for(resolve_task(train.task), d4pg)  # every key is a D4PGConfig field
+
+
+@pytest.mark.ray
+@pytest.mark.slow
+@pytest.mark.usefixtures("ray_cluster")
+@pytest.mark.parametrize("name", ["navigation", "positioning"])
+def test_training_script_smoke(name: str, tmp_path: Path) -> None:
+    main = script(f"train_{name}").main
+    assert main(["--smoke", "--logdir", str(tmp_path), "--run-name", "smoke"]) == 0
+    summary = json.loads((tmp_path / "smoke" / "summary.json").read_text())
+    assert summary["env_steps"] >= 300 and summary["learner_steps"] > 0
+    assert Path(summary["checkpoint"]).exists()
+
+
+@pytest.mark.slow
+def test_evaluate_script_on_an_emulated_robot(tmp_path: Path, capsys) -> None:
+    save_learner(tmp_path / "learner.pt", 15, 6)
+    argv = [str(tmp_path / "learner.pt"), "--env-id", POSITIONING, "--emulate", "--episodes",
+            "1", "--max-steps", "3", "--out", str(tmp_path / "ev")]  # fmt: skip
+    assert script("evaluate").main(argv) == 0
+    data = json.loads((tmp_path / "ev" / "evaluation.json").read_text())
+    assert data["env_id"].endswith("Rob-v0") and data["rs_address"].startswith("127.0.0.1:")
+
+
+def test_figures_from_tensorboard_and_an_evaluation(tmp_path: Path) -> None:
+    pytest.importorskip("matplotlib")
+    from torch.utils.tensorboard import SummaryWriter
+
+    run = tmp_path / "run"
+    writer = SummaryWriter(str(run))
+    for step in range(5):
+        writer.add_scalar("train/success_rate", step / 4, step * 100)
+        writer.add_scalar("eval/success_rate", step / 5, step * 100)
+    writer.close()
+    episodes = [{"final_status": s, "target": [0.1 * i, 0.2, 0.3]}
+                for i, s in enumerate(["success", "collision", "max_steps_exceeded"])]
+    ev = tmp_path / "evaluation.json"
+    ev.write_text(json.dumps({"env_id": POSITIONING, "episodes": episodes}))
+    figures = script("figures")
+    assert figures.read_scalars(run)["train/success_rate"][1][-1] == pytest.approx(1.0)
+    out = tmp_path / "figs"
+    assert figures.main(["--positioning", str(run), "--ur-eval", str(ev), "--out", str(out)]) == 0
+    for name in ("success_rate.png", "ur_targets.png"):
+        assert (out / name).stat().st_size > 10_000
