@@ -20,6 +20,8 @@ class TrainConfig:
     """HOST:PORT of real robot servers; each adds a rollout worker on the task's Rob variant."""
     total_steps: int = 3000
     """Env steps to collect over all workers."""
+    max_wall_s: float | None = None
+    """Stop collecting after this many seconds of training, even before total_steps."""
     logdir: str = "runs"
     """TensorBoard root; each run writes to LOGDIR/RUN_NAME."""
     run_name: str | None = None

@@ -193,7 +193,10 @@ class TrainingRun:
             self._drain_learner(learner_calls, block=len(learner_calls) > 2)
             self._maybe_sync(slot, result.steps)
             in_flight = len(pending) * cfg.steps_per_call
-            if self.stats.env_steps + in_flight < cfg.total_steps:
+            out_of_time = (
+                cfg.max_wall_s is not None and time.perf_counter() - start > cfg.max_wall_s
+            )
+            if self.stats.env_steps + in_flight < cfg.total_steps and not out_of_time:
                 pending[slot.handle.collect.remote(cfg.steps_per_call)] = slot
             eval_ref = self._poll_eval(eval_ref)
             logger.maybe_write(self._scalars(start), self.stats.env_steps, cfg.log_every_s)
@@ -247,13 +250,15 @@ class TrainingRun:
             return ref
         try:
             self.stats.eval = ray.get(ref)
-            self.stats.eval_history.append({
-                "wall_s": round(time.perf_counter() - self.started, 2),
-                "env_steps": self.stats.env_steps,
-                "learner_steps": int(self.stats.learner.get("learner_steps", 0)),
-                "return": round(self.stats.eval["eval_return"], 2),
-                "success_rate": self.stats.eval["eval_success_rate"],
-            })
+            self.stats.eval_history.append(
+                {
+                    "wall_s": round(time.perf_counter() - self.started, 2),
+                    "env_steps": self.stats.env_steps,
+                    "learner_steps": int(self.stats.learner.get("learner_steps", 0)),
+                    "return": round(self.stats.eval["eval_return"], 2),
+                    "success_rate": self.stats.eval["eval_success_rate"],
+                }
+            )
         except RayActorError:
             log.warning("evaluator failed; evaluation stops")
             return None
