@@ -1,6 +1,6 @@
 """Env steps/s of the paper's two envs beside the raw robot-server rate underneath them.
 
-    nice python benchmarks/envs.py [--steps 2000] [--rounds 3] [--write docs/benchmarks.d/envs.md]
+    nice python benchmarks/envs.py [--steps 2000] [--rounds 3] [--write FILE]
 
 For each env (Sim variant, embedded robot server in simulated time, as ``gymnasium.make``
 builds it) three rates are measured against the same robot, scene and options:
