@@ -24,10 +24,9 @@ class RunLogger:
     def advance(self, steps: int) -> None:
         self.bar.update(steps)
 
-    def maybe_write(self, scalars: Mapping[str, float], step: int, every_s: float) -> None:
-        now = time.monotonic()
-        if now - self._last_write >= every_s:
-            self.write(scalars, step)
+    def due(self, every_s: float) -> bool:
+        """Whether ``every_s`` seconds have passed since the last write."""
+        return time.monotonic() - self._last_write >= every_s
 
     def write(self, scalars: Mapping[str, float], step: int) -> None:
         self._last_write = time.monotonic()

@@ -127,7 +127,7 @@ class TrainingRun:
                 make_gym_env(preset.env_id, self._env_kwargs(10_000)), d4pg, seed=cfg.seed + 10_000
             )
         self.weights_ref = self.learner.get_weights.remote()
-        self.version = 0
+        self._weights_stale = False
 
     def _env_kwargs(self, index: int, probe: bool = False) -> dict[str, Any]:
         """Sim envs lease their servers from the supervisor (the probe env never resets)."""
@@ -199,7 +199,8 @@ class TrainingRun:
             if self.stats.env_steps + in_flight < cfg.total_steps and not out_of_time:
                 pending[slot.handle.collect.remote(cfg.steps_per_call)] = slot
             eval_ref = self._poll_eval(eval_ref)
-            logger.maybe_write(self._scalars(start), self.stats.env_steps, cfg.log_every_s)
+            if logger.due(cfg.log_every_s):  # scalars cost a supervisor round trip
+                logger.write(self._scalars(start), self.stats.env_steps)
         self._drain_learner(learner_calls, block=True, all_=True)
         summary = self._finish(start, logger)
         return summary
@@ -231,19 +232,27 @@ class TrainingRun:
                 continue
             self.stats.learner.update(metrics)
             if metrics.get("steps_this_call", 0) > 0:
-                self.weights_ref = self.learner.get_weights.remote()
+                self._weights_stale = True
             if not all_:
                 block = False
 
     def _maybe_sync(self, slot: WorkerSlot, steps: int) -> None:
         slot.steps_since_sync += steps
         if slot.steps_since_sync >= self.cfg.weight_sync_steps or slot.weights_version < 0:
+            if self._weights_stale:  # fetched only when a worker is due, not per learner call
+                self.weights_ref = self.learner.get_weights.remote()
+                self._weights_stale = False
             slot.handle.set_weights.remote(self.weights_ref)
             slot.steps_since_sync = 0
             slot.weights_version = int(self.stats.learner.get("learner_steps", 0))
 
     def _start_eval(self) -> Any:
-        return None if self.evaluator is None else self.evaluator.evaluate.remote(self.weights_ref)
+        if self.evaluator is None:
+            return None
+        if self._weights_stale:
+            self.weights_ref = self.learner.get_weights.remote()
+            self._weights_stale = False
+        return self.evaluator.evaluate.remote(self.weights_ref)
 
     def _poll_eval(self, ref: Any) -> Any:
         if ref is None or not ray.wait([ref], timeout=0)[0]:
