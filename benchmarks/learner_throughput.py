@@ -39,22 +39,37 @@ def random_batch(n: int, obs_dim: int, act_dim: int, seed: int = 0) -> dict[str,
 
 
 def make_d4pg(hidden: tuple[int, ...]) -> Callable[[int], None]:
-    cfg = D4PGConfig(policy_hidden=hidden, critic_hidden=hidden, batch_size=BATCH,
-                     v_min=-1500.0, v_max=0.0, replay_capacity=FILL, device="cpu")
+    cfg = D4PGConfig(
+        policy_hidden=hidden,
+        critic_hidden=hidden,
+        batch_size=BATCH,
+        v_min=-1500.0,
+        v_max=0.0,
+        replay_capacity=FILL,
+        device="cpu",
+    )
     learner = D4PGLearner(cfg, obs_dim=3, act_dim=1, seed=0)
     learner.add(random_batch(FILL, 3, 1))
 
     def run(steps: int) -> None:
         for _ in range(steps):
             learner.step()
+
     return run
 
 
 def make_td3(hidden: tuple[int, ...]) -> Callable[[int], None]:
     from stable_baselines3 import TD3  # benchmark-only dependency
 
-    model = TD3("MlpPolicy", gym.make("Pendulum-v1"), batch_size=BATCH, buffer_size=FILL,
-                policy_kwargs={"net_arch": list(hidden)}, device="cpu", seed=0)
+    model = TD3(
+        "MlpPolicy",
+        gym.make("Pendulum-v1"),
+        batch_size=BATCH,
+        buffer_size=FILL,
+        policy_kwargs={"net_arch": list(hidden)},
+        device="cpu",
+        seed=0,
+    )
     data = random_batch(FILL, 3, 1)
     buf = model.replay_buffer
     buf.observations[:FILL, 0] = data["obs"]
@@ -66,6 +81,7 @@ def make_td3(hidden: tuple[int, ...]) -> Callable[[int], None]:
 
     def run(steps: int) -> None:
         model.train(gradient_steps=steps, batch_size=BATCH)
+
     return run
 
 
@@ -83,9 +99,13 @@ def compare(hidden: tuple[int, ...], steps: int, rounds: int) -> dict[str, objec
     for _ in range(rounds):
         for name, run in runners.items():
             best[name] = max(best[name], steps_per_second(run, steps))
-    return {"hidden": list(hidden), "batch": BATCH, "d4pg_steps_per_s": round(best["d4pg"], 1),
-            "td3_steps_per_s": round(best["sb3_td3"], 1),
-            "ratio": round(best["d4pg"] / best["sb3_td3"], 3)}
+    return {
+        "hidden": list(hidden),
+        "batch": BATCH,
+        "d4pg_steps_per_s": round(best["d4pg"], 1),
+        "td3_steps_per_s": round(best["sb3_td3"], 1),
+        "ratio": round(best["d4pg"] / best["sb3_td3"], 3),
+    }
 
 
 def main() -> None:
@@ -98,8 +118,10 @@ def main() -> None:
         torch.set_num_threads(args.threads)
     results = [compare(h, args.steps, args.rounds) for h in ((400, 300), (256, 256))]
     for r in results:
-        print(f"nets {r['hidden']}: D4PG {r['d4pg_steps_per_s']} steps/s, "
-              f"SB3 TD3 {r['td3_steps_per_s']} steps/s, ratio {r['ratio']}x")
+        print(
+            f"nets {r['hidden']}: D4PG {r['d4pg_steps_per_s']} steps/s, "
+            f"SB3 TD3 {r['td3_steps_per_s']} steps/s, ratio {r['ratio']}x"
+        )
     print(json.dumps({"torch_threads": torch.get_num_threads(), "results": results}))
 
 

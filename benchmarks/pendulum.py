@@ -28,23 +28,32 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=20_000)
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     parser.add_argument("--eval-episodes", type=int, default=10)
-    parser.add_argument("--num-threads", type=int, default=1,
-                        help="torch threads; 1 is fastest on a shared 2-core machine")
+    parser.add_argument(
+        "--num-threads",
+        type=int,
+        default=1,
+        help="torch threads; 1 is fastest on a shared 2-core machine",
+    )
     args = parser.parse_args()
     cfg = D4PGConfig(**{**PRESETS["Pendulum-v1"], "num_threads": args.num_threads})
     start = time.perf_counter()
     results = []
     for seed in args.seeds:
-        run = RunConfig(env="Pendulum-v1", steps=args.steps, seed=seed,
-                        eval_episodes=args.eval_episodes)
+        run = RunConfig(
+            env="Pendulum-v1", steps=args.steps, seed=seed, eval_episodes=args.eval_episodes
+        )
         result = {k: v for k, v in train(run, cfg).items() if k != "config"}
         results.append(result)
         print(json.dumps(result), flush=True)
     means = np.array([r["eval_mean"] for r in results])
     summary = {
-        "benchmark": "pendulum", "steps": args.steps, "seeds": args.seeds,
-        "eval_means": means.round(1).tolist(), "median": float(np.median(means)),
-        "min": float(means.min()), "wall_s_per_seed": [r["wall_s"] for r in results],
+        "benchmark": "pendulum",
+        "steps": args.steps,
+        "seeds": args.seeds,
+        "eval_means": means.round(1).tolist(),
+        "median": float(np.median(means)),
+        "min": float(means.min()),
+        "wall_s_per_seed": [r["wall_s"] for r in results],
         "total_wall_s": round(time.perf_counter() - start, 1),
         "pass": bool(means.min() >= FLOOR and np.median(means) >= MEDIAN_TARGET),
         "config": dataclasses.asdict(cfg),

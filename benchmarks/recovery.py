@@ -77,17 +77,25 @@ def main() -> None:
     parser.add_argument("--probe-deadline", type=float, default=0.5)
     args = parser.parse_args()
     temp_dir = tempfile.mkdtemp(prefix="rgb", dir="/tmp")
-    ray.init(num_cpus=2, include_dashboard=False, _temp_dir=temp_dir, logging_level="ERROR",
-             log_to_driver=False)
+    ray.init(
+        num_cpus=2,
+        include_dashboard=False,
+        _temp_dir=temp_dir,
+        logging_level="ERROR",
+        log_to_driver=False,
+    )
     config = SupervisorConfig(
-        probe_interval_s=args.probe_interval, probe_deadline_s=args.probe_deadline,
+        probe_interval_s=args.probe_interval,
+        probe_deadline_s=args.probe_deadline,
         restart=RestartPolicy(max_restarts=1000, backoff_s=0.0),  # measure recovery, not backoff
     )
     try:
         supervisor = start_supervisor(config, name="bench-supervisor")
         sid = ray.get(supervisor.start_server.remote(ServerSpec("mir100", scene="empty")))["id"]
-        print(f"probe interval {args.probe_interval} s, probe deadline {args.probe_deadline} s, "
-              f"{args.repeats} repeats")
+        print(
+            f"probe interval {args.probe_interval} s, probe deadline {args.probe_deadline} s, "
+            f"{args.repeats} repeats"
+        )
         print("| cause | median (s) | min (s) | max (s) |\n|---|---|---|---|")
         for cause in CAUSES:
             times = []
@@ -95,8 +103,11 @@ def main() -> None:
                 start = inject(supervisor, sid, cause)
                 times.append(served(supervisor, sid) - start)
                 time.sleep(0.3)
-            print(f"| {cause} | {statistics.median(times):.2f} | {min(times):.2f} | "
-                  f"{max(times):.2f} |", flush=True)
+            print(
+                f"| {cause} | {statistics.median(times):.2f} | {min(times):.2f} | "
+                f"{max(times):.2f} |",
+                flush=True,
+            )
         print("restarts counted:", ray.get(supervisor.info.remote(sid))["restarts"])
         ray.get(supervisor.shutdown.remote())
     finally:

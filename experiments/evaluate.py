@@ -32,12 +32,19 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("policy", help="learner.pt checkpoint or exported policy.")
     add_config_args(parser, EvaluationConfig)
-    parser.add_argument("--emulate", action="store_true",
-                        help="Start an emulated real robot for the task and evaluate on it.")
+    parser.add_argument(
+        "--emulate",
+        action="store_true",
+        help="Start an emulated real robot for the task and evaluate on it.",
+    )
     parser.add_argument("--serve-seed", type=int, default=0, help="Seed of the emulated robot.")
-    parser.add_argument("--serve-arg", action="append", default=[],
-                        help="Extra `robogym-ray serve` flag for --emulate (repeatable), "
-                             "e.g. --serve-arg=--emu-latency-ticks=2.")
+    parser.add_argument(
+        "--serve-arg",
+        action="append",
+        default=[],
+        help="Extra `robogym-ray serve` flag for --emulate (repeatable), "
+        "e.g. --serve-arg=--emu-latency-ticks=2.",
+    )
     args = parser.parse_args(argv)
     cfg = config_from_args(EvaluationConfig, args)
     with contextlib.ExitStack() as stack:
@@ -45,9 +52,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             env_id = cfg.env_id or load_policy(args.policy).info.env_id
             if env_id is None:
                 raise ConfigError("--emulate needs --env-id (the policy does not name its env)")
-            address = stack.enter_context(
-                emulated_server(env_id, args.serve_seed, args.serve_arg)
-            )
+            address = stack.enter_context(emulated_server(env_id, args.serve_seed, args.serve_arg))
             cfg = replace(cfg, rs_address=address)
         result = evaluate(args.policy, cfg)
     if cfg.out:

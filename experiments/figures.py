@@ -60,8 +60,12 @@ def plot_success(runs: Mapping[str, str | Path], out: str | Path) -> Path:
             if tag in scalars:
                 steps, values = scalars[tag]
                 ax.plot(steps, values, style, label=tag.split("/")[0])
-        ax.set(title=title, xlabel="env steps", ylabel="success rate (last 100 episodes)",
-               ylim=(-0.02, 1.02))
+        ax.set(
+            title=title,
+            xlabel="env steps",
+            ylabel="success rate (last 100 episodes)",
+            ylim=(-0.02, 1.02),
+        )
         ax.grid(alpha=0.3)
         ax.legend(loc="lower right")
     fig.tight_layout()
@@ -106,8 +110,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    runs = {name: path for name, path in (("MiR100 navigation", args.navigation),
-                                          ("UR10 positioning", args.positioning)) if path}
+    runs = {
+        name: path
+        for name, path in (
+            ("MiR100 navigation", args.navigation),
+            ("UR10 positioning", args.positioning),
+        )
+        if path
+    }
     written = []
     if runs:
         written.append(plot_success(runs, out / "success_rate.png"))

@@ -88,7 +88,11 @@ def add_config_args(
             inner = _scalar_type(_scalar_type(tp))
             # "extend": a repeated flag adds to the list instead of replacing it.
             parser.add_argument(
-                flag, dest=f.name, type=inner, nargs="+", action="extend",
+                flag,
+                dest=f.name,
+                type=inner,
+                nargs="+",
+                action="extend",
                 default=default if default is argparse.SUPPRESS else list(default),
                 help=help_text,
             )

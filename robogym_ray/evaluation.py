@@ -222,8 +222,9 @@ def real_robot_actor(env_id: str, address: str, token: str | None) -> Iterator[A
 
     started = not ray.is_initialized()
     if started:
-        ray.init(num_cpus=1, include_dashboard=False, namespace=remote.NAMESPACE,
-                 log_to_driver=False)
+        ray.init(
+            num_cpus=1, include_dashboard=False, namespace=remote.NAMESPACE, log_to_driver=False
+        )
     name = f"eval-real-{os.getpid()}-{time.monotonic_ns()}"
     actor = remote.start_real_robot(name, address, safety_for(env_id), token=token)
     try:

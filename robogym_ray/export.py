@@ -120,8 +120,7 @@ def export_policy(checkpoint: str | Path, out: str | Path, env_id: str | None = 
     policy, info = load_checkpoint_policy(checkpoint)
     env_id = env_id or env_id_of_run(checkpoint)
     low, high = action_bounds(env_id) if env_id else (None, None)
-    info = PolicyInfo(**{**asdict(info), "env_id": env_id, "action_low": low,
-                         "action_high": high})
+    info = PolicyInfo(**{**asdict(info), "env_id": env_id, "action_low": low, "action_high": high})
     # Tracing is exact here: the policy is a fixed MLP with no data-dependent control flow.
     example = torch.zeros(1, info.obs_dim)
     scripted = torch.jit.trace(policy, example)
@@ -170,8 +169,11 @@ def load_policy(path: str | Path) -> PolicyFunction:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("checkpoint", help="learner.pt written by training (RUN/checkpoints/).")
     parser.add_argument("out", help="TorchScript file to write; its sidecar is OUT.json.")
-    parser.add_argument("--env-id", default=None,
-                        help="Env id the policy drives (default: from the run's config.json).")
+    parser.add_argument(
+        "--env-id",
+        default=None,
+        help="Env id the policy drives (default: from the run's config.json).",
+    )
 
 
 def run(args: argparse.Namespace) -> int:

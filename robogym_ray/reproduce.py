@@ -44,8 +44,11 @@ def read_experiment_config(path: str | Path) -> tuple[dict[str, Any], dict[str, 
 
 def build_parser(default_config: Path, description: str) -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=description)
-    parser.add_argument("--config", default=str(default_config),
-                        help=f"Experiment config file (default: {default_config}).")
+    parser.add_argument(
+        "--config",
+        default=str(default_config),
+        help=f"Experiment config file (default: {default_config}).",
+    )
     parser.add_argument("--total-steps", type=int, help="Env steps (shortens the run).")
     parser.add_argument("--workers", type=int, help="Simulated rollout workers.")
     parser.add_argument("--logdir", help="TensorBoard root (run dir = LOGDIR/RUN_NAME).")
@@ -53,8 +56,11 @@ def build_parser(default_config: Path, description: str) -> argparse.ArgumentPar
     parser.add_argument("--seed", type=int, help="Seed of the run.")
     parser.add_argument("--address", help="Ray address ('auto' joins a running cluster).")
     parser.add_argument("--num-cpus", type=float, help="CPUs of the embedded local Ray.")
-    parser.add_argument("--smoke", action="store_true",
-                        help="Tiny run for CI (300 steps, small nets); checks plumbing only.")
+    parser.add_argument(
+        "--smoke",
+        action="store_true",
+        help="Tiny run for CI (300 steps, small nets); checks plumbing only.",
+    )
     parser.add_argument("--no-progress", action="store_true", help="No progress bar.")
     return parser
 
@@ -79,8 +85,9 @@ def experiment_configs(args: argparse.Namespace) -> tuple[Any, dict[str, Any]]:
     return merge_config(TrainConfig, train, source=args.config), d4pg
 
 
-def train_main(default_config: Path, argv: Sequence[str] | None = None,
-               description: str = "") -> dict[str, Any]:
+def train_main(
+    default_config: Path, argv: Sequence[str] | None = None, description: str = ""
+) -> dict[str, Any]:
     """Parse the flags, train, print and return the run summary."""
     from robogym_ray.actors.tasks import resolve_task
     from robogym_ray.actors.training import run_training

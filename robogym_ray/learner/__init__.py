@@ -7,6 +7,12 @@ from robogym_ray.learner.nstep import NStepAccumulator, Transition, stack_transi
 from robogym_ray.learner.replay import PrioritizedReplay
 
 __all__ = [
-    "D4PGConfig", "D4PGLearner", "NStepAccumulator", "PolicyActor", "PrioritizedReplay",
-    "Transition", "stack_transitions", "to_env_action",
+    "D4PGConfig",
+    "D4PGLearner",
+    "NStepAccumulator",
+    "PolicyActor",
+    "PrioritizedReplay",
+    "Transition",
+    "stack_transitions",
+    "to_env_action",
 ]

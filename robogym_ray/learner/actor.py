@@ -16,8 +16,15 @@ class PolicyActor:
     Actions are on the policy's [-1, 1] scale; :func:`to_env_action` maps them to a Box.
     """
 
-    def __init__(self, obs_dim: int, act_dim: int, hidden: Sequence[int], sigma: float,
-                 layer_norm: bool = False, seed: int | None = None) -> None:
+    def __init__(
+        self,
+        obs_dim: int,
+        act_dim: int,
+        hidden: Sequence[int],
+        sigma: float,
+        layer_norm: bool = False,
+        seed: int | None = None,
+    ) -> None:
         self.policy = Policy(obs_dim, act_dim, hidden, layer_norm).requires_grad_(False)
         self.sigma = sigma
         self.act_dim = act_dim

@@ -5,8 +5,9 @@ from __future__ import annotations
 import torch
 
 
-def make_support(v_min: float, v_max: float, num_atoms: int, device: torch.device | str = "cpu"
-                 ) -> torch.Tensor:
+def make_support(
+    v_min: float, v_max: float, num_atoms: int, device: torch.device | str = "cpu"
+) -> torch.Tensor:
     """Evenly spaced atoms ``z_0 = v_min, ..., z_{K-1} = v_max``."""
     return torch.linspace(v_min, v_max, num_atoms, device=device)
 

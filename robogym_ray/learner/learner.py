@@ -59,16 +59,18 @@ class D4PGLearner:
             torch.set_flush_denormal(True)
         c = config
         self.policy = Policy(obs_dim, act_dim, c.policy_hidden, c.layer_norm).to(self.device)
-        self.critic = DistributionalCritic(obs_dim, act_dim, c.critic_hidden, c.num_atoms,
-                                           c.layer_norm).to(self.device)
+        self.critic = DistributionalCritic(
+            obs_dim, act_dim, c.critic_hidden, c.num_atoms, c.layer_norm
+        ).to(self.device)
         self.target_policy = copy.deepcopy(self.policy).requires_grad_(False)
         self.target_critic = copy.deepcopy(self.critic).requires_grad_(False)
         self.policy_opt = make_adam(self.policy.parameters(), c.policy_lr)
         self.critic_opt = make_adam(self.critic.parameters(), c.critic_lr)
         self.support = make_support(c.v_min, c.v_max, c.num_atoms, self.device)
         alpha = c.priority_exponent if c.prioritized else 0.0  # alpha 0 == uniform sampling
-        self.replay = PrioritizedReplay(c.replay_capacity, obs_dim, act_dim, alpha,
-                                        c.priority_eps, seed=seed)
+        self.replay = PrioritizedReplay(
+            c.replay_capacity, obs_dim, act_dim, alpha, c.priority_eps, seed=seed
+        )
         self.num_steps = 0
 
     # --- data in ------------------------------------------------------------------------
@@ -92,8 +94,9 @@ class D4PGLearner:
     def _target_distribution(self, b: dict[str, torch.Tensor]) -> torch.Tensor:
         with torch.no_grad():
             next_logits = self.target_critic(b["next_obs"], self.target_policy(b["next_obs"]))
-            return categorical_projection(torch.softmax(next_logits, -1), b["reward"],
-                                          b["discount"], self.support)
+            return categorical_projection(
+                torch.softmax(next_logits, -1), b["reward"], b["discount"], self.support
+            )
 
     def step(self) -> dict[str, float]:
         """One learner step: sample, critic + policy update, priorities, targets.
@@ -131,19 +134,27 @@ class D4PGLearner:
             self.replay.update_priorities(idx, priorities)
         self.num_steps += 1
         self._update_targets()
-        stats = torch.stack([critic_loss.detach(), policy_loss.detach(), critic_norm,
-                             policy_norm]).cpu().numpy()  # one device->host copy
+        stats = (
+            torch.stack([critic_loss.detach(), policy_loss.detach(), critic_norm, policy_norm])
+            .cpu()
+            .numpy()
+        )  # one device->host copy
         return {
-            "critic_loss": float(stats[0]), "policy_loss": float(stats[1]),
-            "mean_q": -float(stats[1]), "mean_priority": float(priorities.mean()),
-            "critic_grad_norm": float(stats[2]), "policy_grad_norm": float(stats[3]),
-            "beta": beta, "steps": float(self.num_steps),
+            "critic_loss": float(stats[0]),
+            "policy_loss": float(stats[1]),
+            "mean_q": -float(stats[1]),
+            "mean_priority": float(priorities.mean()),
+            "critic_grad_norm": float(stats[2]),
+            "policy_grad_norm": float(stats[3]),
+            "beta": beta,
+            "steps": float(self.num_steps),
         }
 
     def _clip(self, net: nn.Module) -> torch.Tensor:
         if self.config.max_grad_norm > 0:
-            return nn.utils.clip_grad_norm_(net.parameters(), self.config.max_grad_norm,
-                                            foreach=True)
+            return nn.utils.clip_grad_norm_(
+                net.parameters(), self.config.max_grad_norm, foreach=True
+            )
         return torch.zeros((), device=self.device)
 
     def _update_targets(self) -> None:
@@ -183,10 +194,14 @@ class D4PGLearner:
     def save(self, path: str | os.PathLike, include_replay: bool = False) -> None:
         """Write networks, targets, optimizers and counters to ``path`` (+ ``path.replay.npz``)."""
         state = {
-            "nets": {name: getattr(self, name).state_dict() for name in
-                     ("policy", "critic", "target_policy", "target_critic")},
-            "opts": {"policy": self.policy_opt.state_dict(),
-                     "critic": self.critic_opt.state_dict()},
+            "nets": {
+                name: getattr(self, name).state_dict()
+                for name in ("policy", "critic", "target_policy", "target_critic")
+            },
+            "opts": {
+                "policy": self.policy_opt.state_dict(),
+                "critic": self.critic_opt.state_dict(),
+            },
             "num_steps": self.num_steps,
             "torch_rng": torch.get_rng_state(),
         }

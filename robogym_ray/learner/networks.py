@@ -8,8 +8,9 @@ import torch
 from torch import nn
 
 
-def mlp(in_dim: int, hidden: Sequence[int], out_dim: int, layer_norm: bool = False
-        ) -> nn.Sequential:
+def mlp(
+    in_dim: int, hidden: Sequence[int], out_dim: int, layer_norm: bool = False
+) -> nn.Sequential:
     """Linear(-LayerNorm)-ReLU stack followed by a linear output layer."""
     layers: list[nn.Module] = []
     for width in hidden:
@@ -25,8 +26,9 @@ def mlp(in_dim: int, hidden: Sequence[int], out_dim: int, layer_norm: bool = Fal
 class Policy(nn.Module):
     """Deterministic policy ``obs -> tanh(...)`` with actions in [-1, 1]."""
 
-    def __init__(self, obs_dim: int, act_dim: int, hidden: Sequence[int],
-                 layer_norm: bool = False) -> None:
+    def __init__(
+        self, obs_dim: int, act_dim: int, hidden: Sequence[int], layer_norm: bool = False
+    ) -> None:
         super().__init__()
         self.net = mlp(obs_dim, hidden, act_dim, layer_norm)
 
@@ -37,8 +39,14 @@ class Policy(nn.Module):
 class DistributionalCritic(nn.Module):
     """``(obs, action) -> logits`` over a fixed support of ``num_atoms`` atoms."""
 
-    def __init__(self, obs_dim: int, act_dim: int, hidden: Sequence[int], num_atoms: int,
-                 layer_norm: bool = False) -> None:
+    def __init__(
+        self,
+        obs_dim: int,
+        act_dim: int,
+        hidden: Sequence[int],
+        num_atoms: int,
+        layer_norm: bool = False,
+    ) -> None:
         super().__init__()
         self.net = mlp(obs_dim + act_dim, hidden, num_atoms, layer_norm)
 

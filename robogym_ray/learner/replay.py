@@ -77,8 +77,15 @@ class PrioritizedReplay:
     the running maximum so that it is sampled soon (the Acme issue #205 pitfall).
     """
 
-    def __init__(self, capacity: int, obs_dim: int, act_dim: int, alpha: float = 0.6,
-                 eps: float = 1e-6, seed: int | None = None) -> None:
+    def __init__(
+        self,
+        capacity: int,
+        obs_dim: int,
+        act_dim: int,
+        alpha: float = 0.6,
+        eps: float = 1e-6,
+        seed: int | None = None,
+    ) -> None:
         if capacity < 1:
             raise ConfigError(f"replay capacity={capacity}; expected >= 1")
         self.capacity, self.alpha, self.eps = capacity, alpha, eps
@@ -99,8 +106,7 @@ class PrioritizedReplay:
     def __len__(self) -> int:
         return self.size
 
-    def add(self, batch: dict[str, np.ndarray], priorities: np.ndarray | None = None
-            ) -> np.ndarray:
+    def add(self, batch: dict[str, np.ndarray], priorities: np.ndarray | None = None) -> np.ndarray:
         """Insert a batch (keys :data:`FIELDS`), overwriting the oldest slots once full.
 
         Returns:
@@ -108,8 +114,8 @@ class PrioritizedReplay:
         """
         count = len(batch["reward"])
         if count > self.capacity:  # only the newest ``capacity`` survive FIFO anyway
-            batch = {k: np.asarray(v)[-self.capacity:] for k, v in batch.items()}
-            priorities = None if priorities is None else np.asarray(priorities)[-self.capacity:]
+            batch = {k: np.asarray(v)[-self.capacity :] for k, v in batch.items()}
+            priorities = None if priorities is None else np.asarray(priorities)[-self.capacity :]
             count = self.capacity
         idx = (self.cursor + np.arange(count)) % self.capacity
         for key in FIELDS:
@@ -122,8 +128,9 @@ class PrioritizedReplay:
         self.total_added += count
         return idx
 
-    def sample(self, batch_size: int, beta: float) -> tuple[dict[str, np.ndarray], np.ndarray,
-                                                            np.ndarray]:
+    def sample(
+        self, batch_size: int, beta: float
+    ) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray]:
         """Draw ``batch_size`` indices with P(i) = p_i^alpha / sum p^alpha (stratified).
 
         Returns:
@@ -150,7 +157,7 @@ class PrioritizedReplay:
     def _set_priorities(self, idx: np.ndarray, priorities: np.ndarray) -> None:
         priorities = np.abs(priorities) + self.eps
         self.max_priority = max(self.max_priority, float(priorities.max()))
-        scaled = priorities ** self.alpha
+        scaled = priorities**self.alpha
         self.sum_tree.update(idx, scaled)
         self.min_tree.update(idx, scaled)
 

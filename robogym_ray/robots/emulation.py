@@ -88,8 +88,9 @@ class EmulatedRobot(SimRobot):
         self.name = robot.name
         self.handler_config = robot.handler_config
         self.sensor_periods = robot.sensor_periods
-        self._rng = np.random.default_rng(config.noise_seed if config.noise_seed is not None
-                                          else seed)
+        self._rng = np.random.default_rng(
+            config.noise_seed if config.noise_seed is not None else seed
+        )
         self._delay: deque[np.ndarray | None] = deque()
         self._bias_in: np.ndarray | None = None
         self._bias_out: np.ndarray | None = None
@@ -122,8 +123,9 @@ class EmulatedRobot(SimRobot):
             low, high = self._laser_range
             for group in LASER_GROUPS:
                 if group in values:
-                    noisy = values[group] + self._rng.normal(0.0, cfg.laser_noise_sigma,
-                                                             values[group].shape)
+                    noisy = values[group] + self._rng.normal(
+                        0.0, cfg.laser_noise_sigma, values[group].shape
+                    )
                     values[group] = np.clip(noisy, low, high)
         if cfg.joint_noise_sigma > 0 and JOINT_GROUP in values:
             joints = values[JOINT_GROUP].copy()
@@ -175,8 +177,9 @@ def scale_dynamics(robot: SimRobot, config: EmulationConfig, seed: int | None) -
         ), seed=seed)  # fmt: skip
     elif isinstance(robot, URArm):
         c = robot.config
-        scaled = URArm(replace(c, max_velocity_scale_factor=c.max_velocity_scale_factor * v),
-                       seed=seed)
+        scaled = URArm(
+            replace(c, max_velocity_scale_factor=c.max_velocity_scale_factor * v), seed=seed
+        )
     else:
         raise ConfigError(
             f"cannot scale the dynamics of {type(robot).__name__} ({robot.name}); use "

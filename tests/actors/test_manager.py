@@ -31,11 +31,28 @@ pytestmark = [pytest.mark.ray, pytest.mark.usefixtures("ray_cluster")]
 SP = " " * 9  # robo-gym's backslash-continuation runs (spec b.4)
 MIR100_CMD = "roslaunch mir100_robot_server sim_robot_server.launch world_name:=lab_6x8.world"
 UR10_CMD = (
-    "roslaunch ur_robot_server ur_robot_server.launch" + SP
-    + "world_name:=tabletop_sphere50_no_collision.world" + SP + "reference_frame:=base_link" + SP
-    + "max_velocity_scale_factor:=0.1" + SP + "action_cycle_rate:=10" + SP + "rviz_gui:=true" + SP
-    + "gazebo_gui:=true" + SP + "objects_controller:=true" + SP + "rs_mode:=1object" + SP
-    + "n_objects:=1.0" + SP + "object_0_model_name:=sphere50_no_collision" + SP
+    "roslaunch ur_robot_server ur_robot_server.launch"
+    + SP
+    + "world_name:=tabletop_sphere50_no_collision.world"
+    + SP
+    + "reference_frame:=base_link"
+    + SP
+    + "max_velocity_scale_factor:=0.1"
+    + SP
+    + "action_cycle_rate:=10"
+    + SP
+    + "rviz_gui:=true"
+    + SP
+    + "gazebo_gui:=true"
+    + SP
+    + "objects_controller:=true"
+    + SP
+    + "rs_mode:=1object"
+    + SP
+    + "n_objects:=1.0"
+    + SP
+    + "object_0_model_name:=sphere50_no_collision"
+    + SP
     + "object_0_frame:=target ur_model:=ur10"
 )
 
@@ -60,8 +77,10 @@ def manager(ray_cluster: None) -> Any:
 
     lower = free_port()
     actor = start_supervisor(
-        SupervisorConfig(probe_interval_s=0.5), name="test-manager",
-        manager_host="127.0.0.1", manager_port=lower + 2,  # lower, lower+1: refused, scanned past
+        SupervisorConfig(probe_interval_s=0.5),
+        name="test-manager",
+        manager_host="127.0.0.1",
+        manager_port=lower + 2,  # lower, lower+1: refused, scanned past
     )
     assert ray.get(actor.serving_port.remote()) == lower + 2
     yield lower
@@ -115,9 +134,20 @@ def test_manager_command_serves_and_stops_on_sigterm() -> None:
     with tempfile.TemporaryDirectory(prefix="rgm", dir="/tmp") as tmp:
         env = {**os.environ, "RAY_TMPDIR": tmp, "RAY_ADDRESS": ""}
         proc = subprocess.Popen(
-            [sys.executable, "-m", "robogym_ray.cli", "manager", "--port", str(port),
-             "--num-cpus", "1"],
-            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, env=env,
+            [
+                sys.executable,
+                "-m",
+                "robogym_ray.cli",
+                "manager",
+                "--port",
+                str(port),
+                "--num-cpus",
+                "1",
+            ],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.DEVNULL,
+            text=True,
+            env=env,
         )
         try:
             line = proc.stdout.readline()  # type: ignore[union-attr]

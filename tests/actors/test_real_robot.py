@@ -25,9 +25,20 @@ ray = pytest.importorskip("ray")
 
 def _serve(port: int = 0) -> tuple[subprocess.Popen[str], str]:
     proc = subprocess.Popen(
-        [sys.executable, "-m", "robogym_ray.cli", "serve", "--robot", "mir100", "--real-time",
-         "--port", str(port)],
-        stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
+        [
+            sys.executable,
+            "-m",
+            "robogym_ray.cli",
+            "serve",
+            "--robot",
+            "mir100",
+            "--real-time",
+            "--port",
+            str(port),
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.DEVNULL,
+        text=True,
     )
     line = proc.stdout.readline().strip()  # type: ignore[union-attr]
     assert line.startswith("listening on "), line
@@ -123,7 +134,9 @@ def test_server_error_pauses_and_operator_resumes_from_the_cli(
         gcs = ray.get_runtime_context().gcs_address
         out = subprocess.run(
             [sys.executable, "-m", "robogym_ray.cli", "resume", "mir-cli", "--ray-address", gcs],
-            capture_output=True, text=True, timeout=60,
+            capture_output=True,
+            text=True,
+            timeout=60,
         )
         assert out.returncode == 0, out.stderr[-2000:]
         assert "mir-cli at" in out.stdout and "running" in out.stdout

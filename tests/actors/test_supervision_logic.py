@@ -36,9 +36,14 @@ def test_restart_window_forgets_old_faults() -> None:
 
 @pytest.mark.parametrize(
     ("text", "cause"),
-    [("connection", FaultCause.CONNECTION), ("deadline", FaultCause.DEADLINE),
-     ("hang", FaultCause.HUNG), ("nan", FaultCause.INVALID_STATE),
-     ("manual", FaultCause.MANUAL), ("rejected", FaultCause.OTHER)],
+    [
+        ("connection", FaultCause.CONNECTION),
+        ("deadline", FaultCause.DEADLINE),
+        ("hang", FaultCause.HUNG),
+        ("nan", FaultCause.INVALID_STATE),
+        ("manual", FaultCause.MANUAL),
+        ("rejected", FaultCause.OTHER),
+    ],
 )
 def test_reported_causes_map_to_the_five_faults(text: str, cause: FaultCause) -> None:
     assert FaultCause.parse(text) is cause
@@ -48,13 +53,23 @@ def test_robo_gym_cmd_strings_map_to_robots_and_options() -> None:
     mir = parse_launch_cmd("roslaunch mir100_robot_server sim_robot_server.launch")
     assert (mir.robot, mir.options) == ("mir100", {})
     ur = parse_launch_cmd(
-        "roslaunch ur_robot_server ur_robot_server.launch" + SP + "world_name:=empty.world" + SP
-        + "reference_frame:=base_link" + SP + "rviz_gui:=true" + SP + "gazebo_gui:=true" + SP
+        "roslaunch ur_robot_server ur_robot_server.launch"
+        + SP
+        + "world_name:=empty.world"
+        + SP
+        + "reference_frame:=base_link"
+        + SP
+        + "rviz_gui:=true"
+        + SP
+        + "gazebo_gui:=true"
+        + SP
         + "rs_mode:=only_robot ur_model:=ur5"
     )
     assert ur.robot == "ur5"
     assert ur.options == {
-        "world_name": "empty.world", "reference_frame": "base_link", "rs_mode": "only_robot"
+        "world_name": "empty.world",
+        "reference_frame": "base_link",
+        "rs_mode": "only_robot",
     }
     with pytest.raises(UnknownRobotError, match="panda.launch"):
         parse_launch_cmd("roslaunch panda panda.launch")

@@ -99,9 +99,7 @@ def test_call_past_its_deadline_reported_by_client(supervisor: Any, server: str)
         client.send_action([0.1, 0.0])
     assert err.value.cause == "deadline"
     client.close()
-    after = ray.get(
-        supervisor.report_fault.remote(server, err.value.cause, before["generation"])
-    )
+    after = ray.get(supervisor.report_fault.remote(server, err.value.cause, before["generation"]))
     assert after["generation"] == before["generation"] + 1
     assert after["restarts"]["deadline"] == before["restarts"].get("deadline", 0) + 1
     _client_carries_on(after["address"])
@@ -154,7 +152,8 @@ def test_server_failing_every_restart_is_given_up(ray_cluster: None) -> None:
     from robogym_ray.actors.remote import start_supervisor
 
     config = SupervisorConfig(
-        probe_interval_s=0.3, probe_deadline_s=0.5,
+        probe_interval_s=0.3,
+        probe_deadline_s=0.5,
         restart=RestartPolicy(max_restarts=2, backoff_s=0.1),
     )
     actor = start_supervisor(config, name="test-supervisor-give-up")

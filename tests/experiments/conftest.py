@@ -14,8 +14,13 @@ NAVIGATION = "RoboGymRay/ObstacleAvoidanceMir100Sim-v0"
 
 def save_learner(path, obs_dim: int, act_dim: int, layer_norm: bool = True, seed: int = 0):
     """A small untrained learner's checkpoint (what training writes as learner.pt)."""
-    cfg = D4PGConfig(policy_hidden=(32, 16), critic_hidden=(32,), layer_norm=layer_norm,
-                     replay_capacity=256, batch_size=8)
+    cfg = D4PGConfig(
+        policy_hidden=(32, 16),
+        critic_hidden=(32,),
+        layer_norm=layer_norm,
+        replay_capacity=256,
+        batch_size=8,
+    )
     learner = D4PGLearner(cfg, obs_dim, act_dim, seed=seed)
     learner.save(path)
     return learner

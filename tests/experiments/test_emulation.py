@@ -13,8 +13,14 @@ from robogym_ray.robots.emulation import EmulatedRobot, EmulationConfig, emulate
 from robogym_ray.robots.registry import make_robot
 from robogym_ray.robots.server import RobotServerCore, start_robot_server
 
-QUIET = EmulationConfig(laser_noise_sigma=0.0, joint_noise_sigma=0.0, latency_ticks=0,
-                        velocity_scale=1.0, acceleration_scale=1.0, actuation_bias=0.0)
+QUIET = EmulationConfig(
+    laser_noise_sigma=0.0,
+    joint_noise_sigma=0.0,
+    latency_ticks=0,
+    velocity_scale=1.0,
+    acceleration_scale=1.0,
+    actuation_bias=0.0,
+)
 
 
 def mir_core(cfg: EmulationConfig, seed: int = 0) -> RobotServerCore:
@@ -81,8 +87,13 @@ def test_laser_noise_is_seeded_and_clipped_to_the_scanner_range() -> None:
 
 
 def test_ur_joint_noise_latency_and_bias_keep_one_target_per_action() -> None:
-    cfg = EmulationConfig(joint_noise_sigma=0.01, latency_ticks=2, actuation_bias=0.01,
-                          velocity_scale=0.5, noise_seed=7)
+    cfg = EmulationConfig(
+        joint_noise_sigma=0.01,
+        latency_ticks=2,
+        actuation_bias=0.01,
+        velocity_scale=0.5,
+        noise_seed=7,
+    )
     robot = emulate(make_robot("ur10", options={"rs_mode": "1object"}, seed=0), cfg)
     assert isinstance(robot, EmulatedRobot)
     assert robot.inner.config.max_velocity_scale_factor == pytest.approx(0.5)

@@ -96,7 +96,8 @@ def test_serve_emulated_hardware_answers_and_runs_the_rob_variant(
 @pytest.mark.usefixtures("ray_cluster")
 def test_evaluation_through_the_real_robot_actor(emulated_ur10: str, positioning_checkpoint):
     path, _ = positioning_checkpoint
-    cfg = EvaluationConfig(env_id=POSITIONING, rs_address=emulated_ur10, episodes=1,
-                           max_steps=3, via_actor=True)
+    cfg = EvaluationConfig(
+        env_id=POSITIONING, rs_address=emulated_ur10, episodes=1, max_steps=3, via_actor=True
+    )
     result = evaluate(path, cfg)
     assert result.env_id.endswith("Rob-v0") and result.episodes[0].length == 3

@@ -67,8 +67,10 @@ def test_figures_from_tensorboard_and_an_evaluation(tmp_path: Path) -> None:
         writer.add_scalar("train/success_rate", step / 4, step * 100)
         writer.add_scalar("eval/success_rate", step / 5, step * 100)
     writer.close()
-    episodes = [{"final_status": s, "target": [0.1 * i, 0.2, 0.3]}
-                for i, s in enumerate(["success", "collision", "max_steps_exceeded"])]
+    episodes = [
+        {"final_status": s, "target": [0.1 * i, 0.2, 0.3]}
+        for i, s in enumerate(["success", "collision", "max_steps_exceeded"])
+    ]
     ev = tmp_path / "evaluation.json"
     ev.write_text(json.dumps({"env_id": POSITIONING, "episodes": episodes}))
     figures = script("figures")

@@ -14,8 +14,9 @@ from robogym_ray.learner.distributional import (
 )
 
 
-def brute_force_projection(probs: np.ndarray, rewards: np.ndarray, discounts: np.ndarray,
-                           support: np.ndarray) -> np.ndarray:
+def brute_force_projection(
+    probs: np.ndarray, rewards: np.ndarray, discounts: np.ndarray, support: np.ndarray
+) -> np.ndarray:
     """Triangular-kernel projection written as plain loops (independent of the scatter code)."""
     batch, atoms = probs.shape
     delta = support[1] - support[0]
@@ -36,10 +37,12 @@ def test_projection_matches_loop_reference_and_conserves_mass(seed: int) -> None
     # Rewards partly outside the support exercise the clipping at both ends.
     rewards = rng.uniform(-15.0, 15.0, 16)
     discounts = rng.choice([0.0, 0.5, 0.9, 1.0], 16)
-    got = categorical_projection(torch.tensor(probs), torch.tensor(rewards),
-                                 torch.tensor(discounts), torch.tensor(support)).numpy()
-    np.testing.assert_allclose(got, brute_force_projection(probs, rewards, discounts, support),
-                               atol=1e-10)
+    got = categorical_projection(
+        torch.tensor(probs), torch.tensor(rewards), torch.tensor(discounts), torch.tensor(support)
+    ).numpy()
+    np.testing.assert_allclose(
+        got, brute_force_projection(probs, rewards, discounts, support), atol=1e-10
+    )
     np.testing.assert_allclose(got.sum(axis=1), 1.0, atol=1e-12)
     assert (got >= 0).all()
 
@@ -55,8 +58,7 @@ def test_termination_collapses_onto_reward() -> None:
     support = torch.linspace(-1.0, 1.0, 5, dtype=torch.float64)  # spacing 0.5
     probs = torch.softmax(torch.randn(1, 5, dtype=torch.float64), -1)
     got = categorical_projection(probs, torch.tensor([0.25]), torch.tensor([0.0]), support)
-    torch.testing.assert_close(got, torch.tensor([[0.0, 0.0, 0.5, 0.5, 0.0]],
-                                                 dtype=torch.float64))
+    torch.testing.assert_close(got, torch.tensor([[0.0, 0.0, 0.5, 0.5, 0.0]], dtype=torch.float64))
 
 
 def test_expected_value_and_cross_entropy() -> None:

@@ -17,9 +17,17 @@ OBS, ACT = 3, 2
 
 
 def _config(**kw: object) -> D4PGConfig:
-    base = dict(policy_hidden=(32, 32), critic_hidden=(32, 32), batch_size=16,
-                replay_capacity=512, min_replay_size=32, v_min=-10.0, v_max=10.0,
-                target_update_period=3, device="cpu")
+    base = dict(
+        policy_hidden=(32, 32),
+        critic_hidden=(32, 32),
+        batch_size=16,
+        replay_capacity=512,
+        min_replay_size=32,
+        v_min=-10.0,
+        v_max=10.0,
+        target_update_period=3,
+        device="cpu",
+    )
     return D4PGConfig(**{**base, **kw})  # type: ignore[arg-type]
 
 
@@ -77,8 +85,10 @@ def test_weights_reach_the_actor_and_actions_are_bounded() -> None:
     np.testing.assert_allclose(actor.act(obs, explore=False), expected, rtol=1e-6)
     noisy = np.array([actor.act(obs, explore=True) for _ in range(50)])
     assert noisy.std() > 0.1 and np.abs(noisy).max() <= 1.0
-    np.testing.assert_allclose(to_env_action(np.array([-1.0, 1.0]), np.array([-2.0, 0.0]),
-                                             np.array([2.0, 4.0])), [-2.0, 4.0])
+    np.testing.assert_allclose(
+        to_env_action(np.array([-1.0, 1.0]), np.array([-2.0, 0.0]), np.array([2.0, 4.0])),
+        [-2.0, 4.0],
+    )
 
 
 def test_initial_priorities_are_positive_per_sample_losses() -> None:
@@ -99,11 +109,13 @@ def test_save_restore_gives_identical_outputs_and_training_continues(tmp_path: P
     obs = torch.randn(7, OBS)
     act = torch.rand(7, ACT) * 2 - 1
     for name in ("policy", "target_policy"):
-        torch.testing.assert_close(getattr(clone, name)(obs), getattr(learner, name)(obs),
-                                   rtol=0, atol=0)
+        torch.testing.assert_close(
+            getattr(clone, name)(obs), getattr(learner, name)(obs), rtol=0, atol=0
+        )
     for name in ("critic", "target_critic"):
-        torch.testing.assert_close(getattr(clone, name)(obs, act),
-                                   getattr(learner, name)(obs, act), rtol=0, atol=0)
+        torch.testing.assert_close(
+            getattr(clone, name)(obs, act), getattr(learner, name)(obs, act), rtol=0, atol=0
+        )
     assert clone.num_steps == learner.num_steps == 5
     # Same replay, RNG, optimizer moments and counters: the next steps agree exactly.
     for _ in range(3):

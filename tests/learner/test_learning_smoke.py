@@ -21,15 +21,28 @@ pytest.importorskip("gymnasium.envs.classic_control")
 
 
 def test_d4pg_learns_pendulum_quickly() -> None:
-    cfg = D4PGConfig(**{**PRESETS["Pendulum-v1"], "policy_hidden": (64, 64),
-                        "critic_hidden": (64, 64), "batch_size": 128,
-                        "samples_per_insert": 128.0, "min_replay_size": 500, "num_threads": 1})
+    cfg = D4PGConfig(
+        **{
+            **PRESETS["Pendulum-v1"],
+            "policy_hidden": (64, 64),
+            "critic_hidden": (64, 64),
+            "batch_size": 128,
+            "samples_per_insert": 128.0,
+            "min_replay_size": 500,
+            "num_threads": 1,
+        }
+    )
     run = RunConfig(env="Pendulum-v1", steps=3_000, seed=0, eval_episodes=5)
 
     # Baseline: the same architecture, untrained, on the same evaluation seeds.
     env = gym.make(run.env)
-    untrained = PolicyActor(env.observation_space.shape[0], env.action_space.shape[0],
-                            cfg.policy_hidden, cfg.sigma, seed=run.seed)
+    untrained = PolicyActor(
+        env.observation_space.shape[0],
+        env.action_space.shape[0],
+        cfg.policy_hidden,
+        cfg.sigma,
+        seed=run.seed,
+    )
     before = float(np.mean(evaluate(run.env, untrained, run.eval_episodes, run.seed + 10_000)))
 
     result = train(run, cfg)

@@ -14,9 +14,14 @@ def _run(acc: NStepAccumulator, rewards: list[float], end: str) -> list:
     out = []
     for t, r in enumerate(rewards):
         last = t == len(rewards) - 1
-        out += acc.push(np.array([t]), np.array([0.1 * t]), r, np.array([t + 1]),
-                        terminated=last and end == "terminated",
-                        truncated=last and end == "truncated")
+        out += acc.push(
+            np.array([t]),
+            np.array([0.1 * t]),
+            r,
+            np.array([t + 1]),
+            terminated=last and end == "terminated",
+            truncated=last and end == "truncated",
+        )
     return out
 
 

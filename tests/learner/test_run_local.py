@@ -8,8 +8,19 @@ from robogym_ray.learner.run_local import PRESETS, build_parser, parse_args
 
 
 def test_preset_applies_and_flags_override_it() -> None:
-    run, cfg = parse_args(["--env", "Pendulum-v1", "--steps", "10", "--critic-hidden", "8", "8",
-                           "--prioritized", "false"])
+    run, cfg = parse_args(
+        [
+            "--env",
+            "Pendulum-v1",
+            "--steps",
+            "10",
+            "--critic-hidden",
+            "8",
+            "8",
+            "--prioritized",
+            "false",
+        ]
+    )
     assert run.steps == 10 and run.env == "Pendulum-v1"
     assert cfg.v_min == PRESETS["Pendulum-v1"]["v_min"]
     assert cfg.critic_hidden == (8, 8) and cfg.prioritized is False
