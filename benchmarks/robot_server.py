@@ -14,8 +14,6 @@ import argparse
 import json
 import os
 import platform
-import subprocess
-import sys
 import time
 from collections.abc import Callable
 
@@ -25,6 +23,7 @@ import numpy as np
 from robogym_ray.protocol import robot_server_pb2 as pb
 from robogym_ray.protocol import robot_server_pb2_grpc as pb_grpc
 from robogym_ray.robots.registry import make_robot
+from robogym_ray.robots.serve import serve_process
 from robogym_ray.robots.server import RobotServerCore
 
 SETUPS = {
@@ -51,40 +50,16 @@ def rate(
     return n / (time.perf_counter() - start)
 
 
-def start_server(robot: str, scene: str, options: dict) -> tuple[subprocess.Popen, str]:
-    opts = [f"{k}={v}" for k, v in options.items()]
-    proc = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "robogym_ray.cli",
-            "serve",
-            "--robot",
-            robot,
-            "--scene",
-            scene,
-            *(["--option", *opts] if opts else []),
-        ],
-        stdout=subprocess.PIPE,
-        text=True,
-        env={**os.environ, "PYTHONUNBUFFERED": "1"},
-    )
-    line = proc.stdout.readline().strip()
-    if not line.startswith("listening on "):
-        proc.kill()
-        raise RuntimeError(f"server did not start: {line!r}")
-    return proc, line.removeprefix("listening on ")
-
-
 def bench(robot: str, seconds: float, rounds: int) -> dict:
     setup = SETUPS[robot]
     actions = [setup["action"]] if setup["action"] else ur_actions(64)
     core = RobotServerCore(
         make_robot(robot, scene=setup["scene"], seed=0, options=setup["options"])
     )
-    proc, address = start_server(robot, setup["scene"], setup["options"])
-    stub = pb_grpc.RobotServerStub(grpc.insecure_channel(address))
-    try:
+    opts = [f"{k}={v}" for k, v in setup["options"].items()]
+    args = ["--robot", robot, "--scene", setup["scene"], *(["--option", *opts] if opts else [])]
+    with serve_process(args) as address:
+        stub = pb_grpc.RobotServerStub(grpc.insecure_channel(address))
         stub.GetState(pb.Empty(), timeout=10)
         local, remote = [], []
         for _ in range(rounds):
@@ -96,10 +71,7 @@ def bench(robot: str, seconds: float, rounds: int) -> dict:
                     seconds,
                 )
             )
-    finally:
-        proc.terminate()
-        proc.wait(timeout=20)
-        core.close()
+    core.close()
     in_proc, via_grpc = float(np.median(local)), float(np.median(remote))
     return {
         "robot": robot,

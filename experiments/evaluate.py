@@ -17,14 +17,13 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import json
 import sys
 from collections.abc import Sequence
 from dataclasses import replace
 
 from robogym_ray.config import add_config_args, config_from_args
 from robogym_ray.errors import ConfigError
-from robogym_ray.evaluation import EvaluationConfig, emulated_server, evaluate, write_result
+from robogym_ray.evaluation import EvaluationConfig, emulated_server, evaluate, report
 from robogym_ray.export import load_policy
 
 
@@ -55,10 +54,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             address = stack.enter_context(emulated_server(env_id, args.serve_seed, args.serve_arg))
             cfg = replace(cfg, rs_address=address)
         result = evaluate(args.policy, cfg)
-    if cfg.out:
-        write_result(result, cfg.out)
-    print(result.to_markdown())
-    print(json.dumps(result.summary()), flush=True)
+    report(result, cfg.out)
     return 0
 
 

@@ -18,9 +18,6 @@ import argparse
 import contextlib
 import json
 import os
-import signal
-import subprocess
-import sys
 import time
 from collections import Counter
 from collections.abc import Callable, Iterator, Sequence
@@ -31,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from robogym_ray.errors import ConfigError
+from robogym_ray.robots.serve import serve_process
 
 TIMEOUT_STATUSES = ("max_steps_exceeded", "truncated")
 CATEGORIES = ("success", "collision", "timeout", "other")
@@ -166,23 +164,18 @@ def emulated_server(
     Yields its address; the process is stopped (SIGTERM) on exit. ``extra``: more serve flags,
     e.g. ``["--emu-latency-ticks", "2"]``.
     """
-    cmd = [sys.executable, "-m", "robogym_ray.cli", "serve", "--emulate-hardware",
-           *(["--real-time"] if real_time else []), *serve_args(env_id),
-           *(["--seed", str(seed)] if seed is not None else []), *extra]  # fmt: skip
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
-    try:
-        line = proc.stdout.readline().strip() if proc.stdout else ""
-        if not line.startswith("listening on "):
-            raise ConfigError(f"emulated server did not start ({' '.join(cmd)}): {line!r}")
-        yield line.removeprefix("listening on ")
-    finally:
-        if proc.poll() is None:
-            proc.send_signal(signal.SIGTERM)
-            try:
-                proc.wait(timeout=20)
-            except subprocess.TimeoutExpired:
-                proc.kill()  # our own child, by its handle
-                proc.wait()
+    args = ["--emulate-hardware", *(["--real-time"] if real_time else []), *serve_args(env_id),
+            *(["--seed", str(seed)] if seed is not None else []), *extra]  # fmt: skip
+    with serve_process(args) as address:
+        yield address
+
+
+def report(result: EvaluationResult, out: str | None) -> None:
+    """Write ``evaluation.json``/``.md`` to ``out`` (if given) and print the table and JSON."""
+    if out:
+        write_result(result, out)
+    print(result.to_markdown())
+    print(json.dumps(result.summary()), flush=True)
 
 
 def run_episodes(
@@ -302,8 +295,5 @@ def run(args: argparse.Namespace) -> int:
 
     cfg = config_from_args(EvaluationConfig, args)
     result = evaluate(args.policy, cfg)
-    if cfg.out:
-        write_result(result, cfg.out)
-    print(result.to_markdown())
-    print(json.dumps(result.summary()), flush=True)
+    report(result, cfg.out)
     return 0

@@ -8,11 +8,10 @@ PC needs neither a training run directory nor Ray (unless ``--via-actor``).
 from __future__ import annotations
 
 import argparse
-import json
 
 from robogym_ray.config import add_config_args, config_from_args
 from robogym_ray.errors import ConfigError
-from robogym_ray.evaluation import EvaluationConfig, evaluate, write_result
+from robogym_ray.evaluation import EvaluationConfig, evaluate, report
 from robogym_ray.export import sidecar_path
 
 
@@ -31,8 +30,5 @@ def run(args: argparse.Namespace) -> int:
             "`robogym-ray export CHECKPOINT OUT` first"
         )
     result = evaluate(args.policy, cfg)
-    if cfg.out:
-        write_result(result, cfg.out)
-    print(result.to_markdown())
-    print(json.dumps(result.summary()), flush=True)
+    report(result, cfg.out)
     return 0

@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import ipaddress
 import logging
 import os
 import signal
+import subprocess
 import sys
 import threading
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 
 from robogym_ray.config import add_config_args, config_from_args
@@ -62,6 +65,32 @@ def is_loopback(host: str) -> bool:
         return ipaddress.ip_address(host.strip("[]")).is_loopback
     except ValueError:
         return False
+
+
+@contextlib.contextmanager
+def serve_process(args: Sequence[str], timeout_s: float = 20.0) -> Iterator[str]:
+    """``robogym-ray serve ARGS`` in a child process; yields its ``host:port``.
+
+    The child is stopped with SIGTERM on exit (by its own handle, never by name) and killed if
+    it does not stop within ``timeout_s``. Raises ConfigError if it does not start.
+    """
+    cmd = [sys.executable, "-m", "robogym_ray.cli", "serve", *args]
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
+                            env=env)  # fmt: skip
+    try:
+        line = proc.stdout.readline().strip() if proc.stdout else ""
+        if not line.startswith("listening on "):
+            raise ConfigError(f"robot server did not start ({' '.join(cmd)}): {line!r}")
+        yield line.removeprefix("listening on ")
+    finally:
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGTERM)
+            try:
+                proc.wait(timeout=timeout_s)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

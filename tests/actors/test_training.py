@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import os
 import signal
-import subprocess
-import sys
 import threading
 import time
 from pathlib import Path
@@ -18,6 +16,7 @@ from robogym_ray.actors import remote
 from robogym_ray.actors.train_config import TrainConfig
 from robogym_ray.actors.training import run_training
 from robogym_ray.errors import ConfigError
+from robogym_ray.robots.serve import serve_process
 
 pytestmark = [pytest.mark.ray, pytest.mark.slow, pytest.mark.usefixtures("ray_cluster")]
 
@@ -144,29 +143,10 @@ def test_killing_a_robot_server_and_the_learner_mid_run(tmp_path: Path) -> None:
 @pytest.fixture
 def real_mir100() -> Any:
     """`robogym-ray serve --real-time` in its own process: the stand-in for a real MiR100."""
-    proc = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "robogym_ray.cli",
-            "serve",
-            "--robot",
-            "mir100",
-            "--scene",
-            "lab_6x8",
-            "--real-time",
-            "--port",
-            "0",
-        ],
-        stdout=subprocess.PIPE,
-        text=True,
-        env={**os.environ, "PYTHONUNBUFFERED": "1"},
-    )
-    line = proc.stdout.readline().strip()
-    assert line.startswith("listening on "), line
-    yield line.removeprefix("listening on ")
-    proc.terminate()
-    proc.wait(timeout=20)
+    with serve_process(
+        ["--robot", "mir100", "--scene", "lab_6x8", "--real-time", "--port", "0"]
+    ) as a:
+        yield a
 
 
 def test_mixed_sim_and_real_robot_workers(tmp_path: Path, real_mir100: str) -> None:
