@@ -122,7 +122,9 @@ def test_killing_a_robot_server_and_the_learner_mid_run(tmp_path: Path) -> None:
     for t in injectors:
         t.start()
     try:
-        summary = run_training(cfg)
+        # A restarted learner restores networks, not replay: a small warm-up lets it train again
+        # within this short run however late the kill lands.
+        summary = run_training(cfg, {"min_replay_size": 256})
     finally:
         done.set()
         for t in injectors:
