@@ -20,6 +20,7 @@ Ray mechanisms used, and why:
 
 from __future__ import annotations
 
+import logging
 import os
 import time
 from typing import Any
@@ -38,10 +39,23 @@ from robogym_ray.actors.supervisor import SpawnedServer, Supervisor, SupervisorC
 
 NAMESPACE = "robogym-ray"
 SUPERVISOR_NAME = "robogym-supervisor"
+log = logging.getLogger(__name__)
 
 
 def _alive_nodes() -> int:
     return sum(1 for node in ray.nodes() if node.get("Alive"))
+
+
+def _wait_for_exit(pid: int, deadline: float) -> None:
+    """Wait (until ``deadline``) for process ``pid`` on this node to exit."""
+    while time.monotonic() < deadline:
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            return
+        except PermissionError:  # alive, but not ours to signal
+            pass
+        time.sleep(0.05)
 
 
 class _RayRobotServerHost(RobotServerHost):
@@ -82,6 +96,14 @@ class RaySpawner:
         )
 
     def kill(self, server: SpawnedServer) -> None:
+        # Close the gRPC port first, in the actor: Ray may report an actor dead while its
+        # process (and the gRPC threads in it) still lives for a moment, so "ping fails" alone
+        # does not mean "port closed". A hung or dead actor cannot stop itself; the kill below
+        # still ends it.
+        try:
+            ray.get(server.ref.stop.remote(), timeout=5.0)
+        except Exception:  # noqa: BLE001 - hung or gone already; ray.kill follows either way
+            log.debug("graceful stop of %s failed", server.address, exc_info=True)
         ray.kill(server.ref, no_restart=True)
         # Wait until the process is gone: a restart may rebind its port, and gRPC binds with
         # SO_REUSEPORT, so a still-living old server would share the port with the new one.
@@ -90,10 +112,12 @@ class RaySpawner:
             try:
                 ray.get(server.ref.ping.remote(), timeout=1.0)
             except RayActorError:
-                return
+                break
             except GetTimeoutError:
                 continue
             time.sleep(0.05)
+        if server.node_id == ray.get_runtime_context().get_node_id():
+            _wait_for_exit(server.pid, end)
 
     def inject_fault(self, server: SpawnedServer, fault: str, stall_s: float | None) -> None:
         ray.get(server.ref.inject_fault.remote(fault, stall_s))
