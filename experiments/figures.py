@@ -2,12 +2,13 @@
 
     pip install -e ".[experiments]"        # matplotlib
     python experiments/figures.py --navigation runs/paper/navigation \
-        --positioning runs/paper/positioning \
+        --positioning runs/paper/positioning runs/paper/positioning-cont \
         --ur-eval results/pos-sim/evaluation.json --out figures/
 
 * ``success_rate.png``: success rate over the last 100 episodes against env steps, one panel
   per problem: the rollout workers' episodes (``train/success_rate``, with exploration noise)
-  and the evaluator's greedy episodes (``eval/success_rate``), read from TensorBoard files.
+  and the evaluator's greedy episodes (``eval/success_rate``), read from TensorBoard files;
+  a run continued with ``--init-from`` is drawn as one curve, its continuations marked.
 * ``ur_targets.png``: the UR10 final-evaluation targets (base_link, m) coloured by terminal
   status, in 3D and seen from above.
 """
@@ -50,16 +51,41 @@ def _pyplot() -> Any:
     return plt
 
 
-def plot_success(runs: Mapping[str, str | Path], out: str | Path) -> Path:
-    """One panel per run: train and eval success rate (last 100 episodes) vs env steps."""
+def read_stitched(
+    run_dirs: Sequence[str | Path], tags: Sequence[str] = TAGS
+) -> tuple[dict[str, tuple[list, list]], list[int]]:
+    """Scalars of a run and its continuations (``--init-from``) as one curve.
+
+    Each continuation counts its env steps from 0, so it is shifted to start where the run
+    before it ended. Returns the curves and the env steps at which each continuation began.
+    """
+    out: dict[str, tuple[list, list]] = {tag: ([], []) for tag in tags}
+    offset, starts = 0, []
+    for i, run_dir in enumerate(run_dirs):
+        scalars = read_scalars(run_dir, tags)
+        if i:
+            starts.append(offset)
+        last = 0
+        for tag, (steps, values) in scalars.items():
+            out[tag][0].extend(offset + s for s in steps)
+            out[tag][1].extend(values)
+            last = max([last, *steps])
+        offset += last
+    return {tag: curve for tag, curve in out.items() if curve[0]}, starts
+
+
+def plot_success(runs: Mapping[str, Sequence[str | Path]], out: str | Path) -> Path:
+    """One panel per problem: train and eval success rate (last 100 episodes) vs env steps."""
     plt = _pyplot()
     fig, axes = plt.subplots(1, len(runs), figsize=(5.5 * len(runs), 4), squeeze=False)
-    for ax, (title, run_dir) in zip(axes[0], runs.items(), strict=True):
-        scalars = read_scalars(run_dir)
+    for ax, (title, run_dirs) in zip(axes[0], runs.items(), strict=True):
+        scalars, starts = read_stitched(run_dirs)
         for tag, style in zip(TAGS, ("-", "--"), strict=True):
             if tag in scalars:
                 steps, values = scalars[tag]
                 ax.plot(steps, values, style, label=tag.split("/")[0])
+        for i, start in enumerate(starts):
+            ax.axvline(start, color="gray", lw=0.8, ls=":", label="continued" if not i else None)
         ax.set(
             title=title,
             xlabel="env steps",
@@ -103,8 +129,13 @@ def plot_targets(evaluation_json: str | Path, out: str | Path) -> Path:
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--navigation", help="Run directory of the navigation training.")
-    parser.add_argument("--positioning", help="Run directory of the positioning training.")
+    more = " (several: a run, then its --init-from continuations, in order)"
+    parser.add_argument(
+        "--navigation", nargs="+", help="Run directory of the navigation training" + more
+    )
+    parser.add_argument(
+        "--positioning", nargs="+", help="Run directory of the positioning training" + more
+    )
     parser.add_argument("--ur-eval", help="evaluation.json of the UR10 final evaluation.")
     parser.add_argument("--out", default="figures", help="Output directory (default: figures).")
     args = parser.parse_args(argv)

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from robogym_ray.learner.config import D4PGConfig
-from robogym_ray.learner.learner import D4PGLearner
+from robogym_ray.learner.learner import REPLAY_SUFFIX, D4PGLearner
 
 log = logging.getLogger(__name__)
 
@@ -99,14 +99,24 @@ class LearnerService:
     def get_weights(self) -> tuple[dict[str, np.ndarray], int]:
         return self.learner.get_weights(), self.version
 
-    def checkpoint(self) -> str | None:
-        """Write the checkpoint atomically (a crash mid-write never leaves a broken file)."""
+    def checkpoint(self, include_replay: bool = False) -> str | None:
+        """Write the checkpoint atomically (a crash mid-write never leaves a broken file).
+
+        With ``include_replay`` the replay goes to ``learner.pt.replay.npz`` beside it, so a
+        continued run starts with it; without, a replay file left there is removed, because it
+        would no longer belong to these networks.
+        """
         if self.checkpoint_dir is None:
             return None
         self.checkpoint_dir.mkdir(parents=True, exist_ok=True)
-        tmp = self.checkpoint_dir / f".{CHECKPOINT_NAME}.{os.getpid()}.tmp"
-        self.learner.save(tmp)
         final = self.checkpoint_dir / CHECKPOINT_NAME
+        replay = Path(f"{final}{REPLAY_SUFFIX}")
+        tmp = self.checkpoint_dir / f".{CHECKPOINT_NAME}.{os.getpid()}.tmp"
+        self.learner.save(tmp, include_replay=include_replay)
+        if include_replay:
+            os.replace(f"{tmp}{REPLAY_SUFFIX}", replay)
+        else:
+            replay.unlink(missing_ok=True)
         os.replace(tmp, final)
         self._last_checkpoint_step = self.version
         return str(final)

@@ -44,6 +44,12 @@ class TrainConfig:
     """Exploration noise of the last worker; worker sigmas spread from d4pg.sigma down to it."""
     checkpoint_every: int = 500
     """Learner steps between checkpoints (a restarted learner resumes from the latest)."""
+    init_from: str | None = None
+    """learner.pt of an earlier run to continue from (networks, optimisers, step count, and its
+    replay when LEARNER.pt.replay.npz lies beside it); ignored when this run's directory already
+    has a checkpoint, which is newer."""
+    save_replay: bool = False
+    """Write the replay buffer beside the final checkpoint, for a later --init-from."""
     evaluator: bool = True
     """Run an evaluator actor with the greedy policy on its own env."""
     worker_cpus: float = 0.25

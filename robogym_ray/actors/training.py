@@ -101,9 +101,18 @@ class TrainingRun:
         self.stats = RunStats()
         check_resources(cfg)
         self.supervision = setup.start_supervision(cfg, preset.env_id, self.run_dir.name)
-        probe = make_gym_env(preset.env_id, self._env_kwargs(0, probe=True))()
-        self.obs_dim, self.act_dim = box_dims(probe)
-        probe.close()
+        try:
+            probe = make_gym_env(preset.env_id, self._env_kwargs(0, probe=True))()
+            self.obs_dim, self.act_dim = box_dims(probe)
+            probe.close()
+            if cfg.init_from:
+                setup.seed_checkpoint(
+                    cfg.init_from, self.run_dir / "checkpoints", d4pg, self.obs_dim, self.act_dim
+                )
+        except BaseException:
+            if self.supervision is not None:
+                self.supervision.stop()
+            raise
         self.learner = remote.LearnerActor.options(
             num_cpus=cfg.learner_cpus,
             num_gpus=setup.learner_gpus(cfg),
@@ -119,6 +128,8 @@ class TrainingRun:
             checkpoint_dir=str(self.run_dir / "checkpoints"),
             checkpoint_every=cfg.checkpoint_every,
         )
+        # A continued run starts at the checkpoint's step count; rates count this run's steps.
+        self.first_learner_step = ray.get(self.learner.status.remote())["version"]
         self.real_robots: list[Any] = []
         self.workers = self._start_workers()
         self.evaluator = None
@@ -282,7 +293,9 @@ class TrainingRun:
             {
                 "train/return_last100": float(np.mean(s.returns)) if s.returns else 0.0,
                 "throughput/env_steps_per_s": s.env_steps / wall,
-                "throughput/learner_steps_per_s": learner_steps / wall,
+                "throughput/learner_steps_per_s": (
+                    max(0.0, learner_steps - self.first_learner_step) / wall
+                ),
                 "replay/size": s.learner.get("replay_size", 0.0),
                 "replay/mean_priority": s.learner.get("mean_priority", 0.0),
                 "loss/critic": s.learner.get("critic_loss", 0.0),
@@ -301,7 +314,7 @@ class TrainingRun:
         return out
 
     def _finish(self, start: float, logger: Any) -> dict[str, Any]:
-        checkpoint = ray.get(self.learner.checkpoint.remote())
+        checkpoint = ray.get(self.learner.checkpoint.remote(self.cfg.save_replay))
         learner_status = ray.get(self.learner.status.remote())
         wall = time.perf_counter() - start
         scalars = self._scalars(start)
@@ -343,7 +356,12 @@ def run_training(cfg: TrainConfig, d4pg_overrides: Mapping[str, Any] | None = No
     preset = resolve_task(cfg.task)
     d4pg = d4pg_for(preset, d4pg_overrides)
     started_ray = setup.ensure_ray(cfg)
-    run = TrainingRun(cfg, d4pg, preset)
+    try:
+        run = TrainingRun(cfg, d4pg, preset)
+    except BaseException:
+        if started_ray:
+            ray.shutdown()
+        raise
     try:
         (run.run_dir / "config.json").write_text(
             json.dumps({"train": asdict(cfg), "d4pg": asdict(d4pg)}, indent=2)

@@ -3,17 +3,24 @@
 from __future__ import annotations
 
 import logging
+import shutil
 from collections import Counter
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import ray
+import torch
 
 from robogym_ray.actors import remote
+from robogym_ray.actors.learner_service import CHECKPOINT_NAME
 from robogym_ray.actors.policy import FaultCause
 from robogym_ray.actors.provider import SupervisorServerProvider
 from robogym_ray.actors.supervisor import SupervisorConfig
 from robogym_ray.actors.train_config import TrainConfig
+from robogym_ray.errors import ConfigError
+from robogym_ray.learner.config import D4PGConfig
+from robogym_ray.learner.learner import REPLAY_SUFFIX, D4PGLearner
 
 log = logging.getLogger(__name__)
 
@@ -95,3 +102,39 @@ def start_supervision(cfg: TrainConfig, env_id: str, run_name: str) -> Supervisi
     name = f"{remote.SUPERVISOR_NAME}-{run_name}"
     actor = remote.start_supervisor(SupervisorConfig(server_num_cpus=cfg.server_cpus), name=name)
     return Supervision(actor, name, owned=True, resources=resources)
+
+
+def seed_checkpoint(
+    init_from: str, checkpoint_dir: Path, d4pg: D4PGConfig, obs_dim: int, act_dim: int
+) -> bool:
+    """Copy ``init_from`` (and its replay) into ``checkpoint_dir`` for the learner to restore.
+
+    Checked here, in the driver, so a checkpoint of another task or network size fails with one
+    clear error instead of a learner actor that crashes and restarts. Returns False (and copies
+    nothing) when the run already has its own checkpoint, e.g. a re-run of the same command.
+    """
+    target = checkpoint_dir / CHECKPOINT_NAME
+    if target.exists():
+        log.warning("%s exists; --init-from %s is not used", target, init_from)
+        return False
+    source = Path(init_from)
+    if not source.is_file():
+        raise ConfigError(f"--init-from {init_from}: no such checkpoint file")
+    probe = D4PGLearner(d4pg, obs_dim, act_dim)
+    try:
+        state = torch.load(source, map_location="cpu", weights_only=True)
+        probe.policy.load_state_dict(state["nets"]["policy"])
+        probe.critic.load_state_dict(state["nets"]["critic"])
+    except Exception as exc:  # noqa: BLE001 - any failure means "not a checkpoint for this run"
+        raise ConfigError(
+            f"--init-from {init_from}: not a D4PG checkpoint for obs_dim={obs_dim}, "
+            f"act_dim={act_dim}, policy_hidden={list(d4pg.policy_hidden)}, "
+            f"critic_hidden={list(d4pg.critic_hidden)} ({type(exc).__name__}: {exc})"
+        ) from exc
+    checkpoint_dir.mkdir(parents=True, exist_ok=True)
+    shutil.copy2(source, target)
+    replay = Path(f"{source}{REPLAY_SUFFIX}")
+    if replay.is_file():
+        shutil.copy2(replay, Path(f"{target}{REPLAY_SUFFIX}"))
+    log.info("continuing from %s (step %d)", source, int(state["num_steps"]))
+    return True

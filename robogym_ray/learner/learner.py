@@ -43,6 +43,10 @@ def make_adam(params: Any, lr: float) -> torch.optim.Adam:
         return torch.optim.Adam(params, lr=lr)
 
 
+REPLAY_SUFFIX = ".replay.npz"
+"""Appended to a checkpoint's path for the file holding its replay buffer."""
+
+
 class D4PGLearner:
     """Single-learner D4PG (Barth-Maron et al. 2018) with Ape-X style prioritized replay."""
 
@@ -192,7 +196,7 @@ class D4PGLearner:
         self.policy.load_state_dict({k: torch.as_tensor(v) for k, v in weights.items()})
 
     def save(self, path: str | os.PathLike, include_replay: bool = False) -> None:
-        """Write networks, targets, optimizers and counters to ``path`` (+ ``path.replay.npz``)."""
+        """Write networks, targets, optimizers, counters to ``path`` (replay: + REPLAY_SUFFIX)."""
         state = {
             "nets": {
                 name: getattr(self, name).state_dict()
@@ -207,7 +211,7 @@ class D4PGLearner:
         }
         torch.save(state, path)
         if include_replay:
-            np.savez(str(path) + ".replay.npz", **self.replay.state_dict())
+            np.savez(str(path) + REPLAY_SUFFIX, **self.replay.state_dict())
 
     def restore(self, path: str | os.PathLike) -> None:
         """Load what :meth:`save` wrote; the replay too when its file exists."""
@@ -218,7 +222,7 @@ class D4PGLearner:
         self.critic_opt.load_state_dict(state["opts"]["critic"])
         self.num_steps = int(state["num_steps"])
         torch.set_rng_state(state["torch_rng"].cpu())
-        replay_path = Path(str(path) + ".replay.npz")
+        replay_path = Path(str(path) + REPLAY_SUFFIX)
         if replay_path.exists():
             with np.load(replay_path, allow_pickle=True) as data:
                 self.replay.load_state_dict(dict(data))

@@ -188,3 +188,25 @@ def test_pendulum_runs_without_a_supervisor(tmp_path: Path) -> None:
     )
     summary = run_training(cfg)
     assert summary["env_steps"] >= 600 and summary["restarts"] == {}
+
+
+def test_a_run_continues_from_another_runs_checkpoint_and_replay(tmp_path: Path) -> None:
+    common = dict(task="pendulum", workers=1, logdir=str(tmp_path), progress=False)
+    small = {"min_replay_size": 256}
+    first = run_training(
+        TrainConfig(
+            **common, run_name="first", total_steps=600, random_steps=200, save_replay=True
+        ),
+        small,
+    )
+    assert first["learner_steps"] > 0
+    checkpoint = Path(first["checkpoint"])
+    assert Path(f"{checkpoint}.replay.npz").exists()
+    second = run_training(
+        TrainConfig(**common, run_name="second", total_steps=200, init_from=str(checkpoint)),
+        small,
+    )
+    assert second["learner_restored_from_step"] == first["learner_steps"]
+    assert second["learner_steps"] > first["learner_steps"]
+    with pytest.raises(ConfigError, match="init-from"):
+        run_training(TrainConfig(**common, run_name="third", init_from=str(tmp_path / "x.pt")))

@@ -12,9 +12,11 @@ import pytest
 from robogym_ray.actors.evaluator import Evaluator, status_rates
 from robogym_ray.actors.learner_service import LearnerService
 from robogym_ray.actors.rollout import SERVER_RESTARTED, RolloutWorker, box_dims, make_gym_env
+from robogym_ray.actors.training_setup import seed_checkpoint
 from robogym_ray.envs.client import Deadlines
 from robogym_ray.errors import ConfigError
 from robogym_ray.learner.config import D4PGConfig
+from robogym_ray.learner.learner import REPLAY_SUFFIX
 
 SMALL = D4PGConfig(
     policy_hidden=(32, 32),
@@ -137,3 +139,35 @@ def test_real_robot_failure_abandons_the_episode_and_waits_for_the_robot() -> No
     finally:
         server.stop()
         worker.close()
+
+
+def test_final_checkpoint_carries_the_replay_and_periodic_ones_drop_it(tmp_path: Path) -> None:
+    worker = RolloutWorker(make_gym_env("Pendulum-v1"), SMALL, seed=0)
+    service = LearnerService(SMALL, 3, 1, checkpoint_dir=str(tmp_path), checkpoint_every=0)
+    service.add(worker.collect(200).batch)
+    replay_file = tmp_path / f"learner.pt{REPLAY_SUFFIX}"
+    service.checkpoint(include_replay=True)
+    assert replay_file.exists()
+    restored = LearnerService(SMALL, 3, 1, checkpoint_dir=str(tmp_path))
+    assert len(restored.learner.replay) == len(service.learner.replay) > 0
+    # A checkpoint without replay must not leave the older replay paired with newer networks.
+    service.checkpoint()
+    assert not replay_file.exists()
+    assert len(LearnerService(SMALL, 3, 1, checkpoint_dir=str(tmp_path)).learner.replay) == 0
+
+
+def test_init_from_is_checked_before_any_actor_starts(tmp_path: Path) -> None:
+    source = tmp_path / "old" / "learner.pt"
+    LearnerService(SMALL, 3, 1, checkpoint_dir=str(source.parent)).checkpoint()
+    run_dir = tmp_path / "new" / "checkpoints"
+    with pytest.raises(ConfigError, match="no such checkpoint"):
+        seed_checkpoint(str(tmp_path / "missing.pt"), run_dir, SMALL, 3, 1)
+    with pytest.raises(ConfigError, match="obs_dim=4"):  # another task's observation size
+        seed_checkpoint(str(source), run_dir, SMALL, 4, 1)
+    assert not run_dir.exists()  # a refused checkpoint leaves nothing behind
+    assert seed_checkpoint(str(source), run_dir, SMALL, 3, 1)
+    assert (run_dir / "learner.pt").read_bytes() == source.read_bytes()
+    # A re-run of the same command keeps the run's own, newer checkpoint.
+    (run_dir / "learner.pt").write_bytes(b"newer")
+    assert not seed_checkpoint(str(source), run_dir, SMALL, 3, 1)
+    assert (run_dir / "learner.pt").read_bytes() == b"newer"

@@ -75,7 +75,13 @@ def test_figures_from_tensorboard_and_an_evaluation(tmp_path: Path) -> None:
     ev.write_text(json.dumps({"env_id": POSITIONING, "episodes": episodes}))
     figures = script("figures")
     assert figures.read_scalars(run)["train/success_rate"][1][-1] == pytest.approx(1.0)
+    # A continuation counts from 0 again; stitched, it follows on from the first run's end.
+    curves, starts = figures.read_stitched([run, run])
+    steps, values = curves["eval/success_rate"]
+    assert starts == [400] and steps == [0, 100, 200, 300, 400, 400, 500, 600, 700, 800]
+    assert values[5] == pytest.approx(0.0) and values[-1] == pytest.approx(0.8)
     out = tmp_path / "figs"
-    assert figures.main(["--positioning", str(run), "--ur-eval", str(ev), "--out", str(out)]) == 0
+    args = ["--positioning", str(run), str(run), "--ur-eval", str(ev), "--out", str(out)]
+    assert figures.main(args) == 0
     for name in ("success_rate.png", "ur_targets.png"):
         assert (out / name).stat().st_size > 10_000
