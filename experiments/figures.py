@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 TAGS = ("train/success_rate", "eval/success_rate")
+FIRST_EPISODE_TAG = "episode/return"  # written once per finished episode
 STATUS_COLOURS = {"success": "tab:green", "collision": "tab:red",
                   "max_steps_exceeded": "tab:orange"}  # fmt: skip
 
@@ -62,13 +63,17 @@ def read_stitched(
     out: dict[str, tuple[list, list]] = {tag: ([], []) for tag in tags}
     offset, starts = 0, []
     for i, run_dir in enumerate(run_dirs):
-        scalars = read_scalars(run_dir, tags)
+        scalars = read_scalars(run_dir, [*tags, FIRST_EPISODE_TAG])
+        episodes = scalars.pop(FIRST_EPISODE_TAG, ([], []))[0]
+        # Older runs logged the train rates as 0 before their first episode had ended.
+        first_episode = min(episodes, default=0)
         if i:
             starts.append(offset)
         last = 0
         for tag, (steps, values) in scalars.items():
-            out[tag][0].extend(offset + s for s in steps)
-            out[tag][1].extend(values)
+            kept = [(s, v) for s, v in zip(steps, values, strict=True) if s >= first_episode]
+            out[tag][0].extend(offset + s for s, _ in kept)
+            out[tag][1].extend(v for _, v in kept)
             last = max([last, *steps])
         offset += last
     return {tag: curve for tag, curve in out.items() if curve[0]}, starts

@@ -287,7 +287,9 @@ class TrainingRun:
     def _scalars(self, start: float) -> dict[str, float]:
         s, wall = self.stats, max(1e-9, time.perf_counter() - start)
         learner_steps = s.learner.get("learner_steps", 0.0)
-        out = {f"train/{k}": v for k, v in status_rates(list(s.statuses)).items()}
+        # No rate before the first finished episode: a 0 there would read as "never succeeds".
+        statuses = list(s.statuses)
+        out = {f"train/{k}": v for k, v in status_rates(statuses).items()} if statuses else {}
         out.update({f"eval/{k.removeprefix('eval_')}": v for k, v in s.eval.items()})
         out.update(
             {
