@@ -101,18 +101,27 @@ class TrainingRun:
         self.stats = RunStats()
         check_resources(cfg)
         self.supervision = setup.start_supervision(cfg, preset.env_id, self.run_dir.name)
+        self.learner: Any = None
+        self.evaluator: Any = None
+        self.workers: list[Any] = []
+        self.real_robots: list[Any] = []
         try:
-            probe = make_gym_env(preset.env_id, self._env_kwargs(0, probe=True))()
-            self.obs_dim, self.act_dim = box_dims(probe)
-            probe.close()
-            if cfg.init_from:
-                setup.seed_checkpoint(
-                    cfg.init_from, self.run_dir / "checkpoints", d4pg, self.obs_dim, self.act_dim
-                )
+            self._start_actors()
         except BaseException:
-            if self.supervision is not None:
-                self.supervision.stop()
+            # Ray would end these actors too once their handles are collected (ownership), but
+            # only when garbage collection gets there; the one cleanup path stops them now.
+            self.shutdown()
             raise
+
+    def _start_actors(self) -> None:
+        cfg, d4pg, preset = self.cfg, self.d4pg, self.preset
+        probe = make_gym_env(preset.env_id, self._env_kwargs(0, probe=True))()
+        self.obs_dim, self.act_dim = box_dims(probe)
+        probe.close()
+        if cfg.init_from:
+            setup.seed_checkpoint(
+                cfg.init_from, self.run_dir / "checkpoints", d4pg, self.obs_dim, self.act_dim
+            )
         self.learner = remote.LearnerActor.options(
             num_cpus=cfg.learner_cpus,
             num_gpus=setup.learner_gpus(cfg),
@@ -130,9 +139,7 @@ class TrainingRun:
         )
         # A continued run starts at the checkpoint's step count; rates count this run's steps.
         self.first_learner_step = ray.get(self.learner.status.remote())["version"]
-        self.real_robots: list[Any] = []
         self.workers = self._start_workers()
-        self.evaluator = None
         if cfg.evaluator:
             self.evaluator = remote.EvaluatorActor.options(num_cpus=cfg.evaluator_cpus).remote(
                 make_gym_env(preset.env_id, self._env_kwargs(10_000)), d4pg, seed=cfg.seed + 10_000

@@ -20,7 +20,8 @@ from robogym_ray.actors.supervisor import SupervisorConfig
 from robogym_ray.actors.train_config import TrainConfig
 from robogym_ray.errors import ConfigError
 from robogym_ray.learner.config import D4PGConfig
-from robogym_ray.learner.learner import REPLAY_SUFFIX, D4PGLearner
+from robogym_ray.learner.learner import REPLAY_SUFFIX
+from robogym_ray.learner.networks import DistributionalCritic, Policy
 
 log = logging.getLogger(__name__)
 
@@ -120,16 +121,22 @@ def seed_checkpoint(
     source = Path(init_from)
     if not source.is_file():
         raise ConfigError(f"--init-from {init_from}: no such checkpoint file")
-    probe = D4PGLearner(d4pg, obs_dim, act_dim)
+    # The learner's two network classes only: a whole D4PGLearner would allocate its replay and
+    # set torch's threads, seed and denormal mode in this (driver) process.
+    policy = Policy(obs_dim, act_dim, d4pg.policy_hidden, d4pg.layer_norm)
+    critic = DistributionalCritic(
+        obs_dim, act_dim, d4pg.critic_hidden, d4pg.num_atoms, d4pg.layer_norm
+    )
     try:
         state = torch.load(source, map_location="cpu", weights_only=True)
-        probe.policy.load_state_dict(state["nets"]["policy"])
-        probe.critic.load_state_dict(state["nets"]["critic"])
+        policy.load_state_dict(state["nets"]["policy"])
+        critic.load_state_dict(state["nets"]["critic"])
     except Exception as exc:  # noqa: BLE001 - any failure means "not a checkpoint for this run"
         raise ConfigError(
             f"--init-from {init_from}: not a D4PG checkpoint for obs_dim={obs_dim}, "
             f"act_dim={act_dim}, policy_hidden={list(d4pg.policy_hidden)}, "
-            f"critic_hidden={list(d4pg.critic_hidden)} ({type(exc).__name__}: {exc})"
+            f"critic_hidden={list(d4pg.critic_hidden)}, num_atoms={d4pg.num_atoms}, "
+            f"layer_norm={d4pg.layer_norm} ({type(exc).__name__}: {exc})"
         ) from exc
     checkpoint_dir.mkdir(parents=True, exist_ok=True)
     shutil.copy2(source, target)
