@@ -2,7 +2,8 @@
 
 ``experiments/train_navigation.py`` and ``experiments/train_positioning.py`` are one line each
 over ``train_main``; the hyperparameters live in ``experiments/configs/*.json`` (the format
-``robogym-ray train --config`` reads: ``{"train": {...TrainConfig}, "d4pg": {...D4PGConfig}}``).
+``robogym-ray train --config`` reads: ``{"train": {...TrainConfig}, "d4pg": {...D4PGConfig},
+"emulation": {...EmulationConfig}}``, the last for ``emulated_workers``).
 ``--smoke`` shrinks everything (steps, networks, replay) for a CI run of about a minute; a smoke
 run checks the plumbing, not learning.
 """
@@ -65,12 +66,15 @@ def build_parser(default_config: Path, description: str) -> argparse.ArgumentPar
     return parser
 
 
-def experiment_configs(args: argparse.Namespace) -> tuple[Any, dict[str, Any]]:
-    """``(TrainConfig, d4pg overrides)``: file <- ``--smoke`` <- command-line flags."""
+def experiment_configs(args: argparse.Namespace) -> tuple[Any, dict[str, Any], Any]:
+    """``(TrainConfig, d4pg overrides, EmulationConfig)``: file <- ``--smoke`` <- flags."""
+    from robogym_ray.actors.train_cmd import read_sections
     from robogym_ray.actors.train_config import TrainConfig
     from robogym_ray.config import merge_config
+    from robogym_ray.robots.emulation import EmulationConfig
 
-    train, d4pg = read_experiment_config(args.config)
+    sections = read_sections(args.config)
+    train, d4pg = sections["train"], sections["d4pg"]
     if args.smoke:
         train.update(SMOKE_TRAIN)
         d4pg.update(SMOKE_D4PG)
@@ -82,7 +86,11 @@ def experiment_configs(args: argparse.Namespace) -> tuple[Any, dict[str, Any]]:
     train.update({k: v for k, v in flags.items() if v is not None})
     if args.no_progress:
         train["progress"] = False
-    return merge_config(TrainConfig, train, source=args.config), d4pg
+    return (
+        merge_config(TrainConfig, train, source=args.config),
+        d4pg,
+        merge_config(EmulationConfig, sections["emulation"], source=args.config),
+    )
 
 
 def train_main(
@@ -93,8 +101,8 @@ def train_main(
     from robogym_ray.actors.training import run_training
 
     args = build_parser(default_config, description).parse_args(argv)
-    cfg, d4pg = experiment_configs(args)
+    cfg, d4pg, emulation = experiment_configs(args)
     resolve_task(cfg.task)  # fail before Ray starts on a bad task
-    summary = run_training(cfg, d4pg)
+    summary = run_training(cfg, d4pg, emulation)
     print(json.dumps(summary), flush=True)
     return summary

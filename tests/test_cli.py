@@ -56,3 +56,44 @@ def test_train_rejects_a_malformed_config(tmp_path: Path) -> None:
     assert out.returncode == 2 and "workers" in out.stderr
     out = run_cli("train", "--real-robot", "nohostport")
     assert out.returncode == 2 and "HOST:PORT" in out.stderr
+
+
+def test_train_rejects_bad_emulation_settings_before_starting_ray(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps({"emulation": {"laser_noise_sigmaa": 0.1}}))
+    out = run_cli("train", "--config", str(bad))
+    assert out.returncode == 2 and "laser_noise_sigmaa" in out.stderr
+    bad.write_text(json.dumps({"emulaton": {}}))
+    out = run_cli("train", "--config", str(bad))
+    assert out.returncode == 2 and "emulation" in out.stderr
+    out = run_cli("train", "--workers", "2", "--emulated-workers", "3")
+    assert out.returncode == 2 and "emulated_workers" in out.stderr and "workers=2" in out.stderr
+    out = run_cli("train", "--emulated-workers", "1", "--emu-laser-noise-sigma", "nan")
+    assert out.returncode == 2 and "laser_noise_sigma" in out.stderr
+    out = run_cli("train", "--task", "pendulum", "--workers", "1", "--emulated-workers", "1")
+    assert out.returncode == 2 and "robot task" in out.stderr
+    assert "Started a local Ray" not in out.stderr
+
+
+def test_train_merges_emulation_from_config_file_and_flags(tmp_path: Path) -> None:
+    import argparse
+
+    from robogym_ray.actors import train_cmd
+
+    path = tmp_path / "dr.json"
+    path.write_text(
+        json.dumps(
+            {
+                "train": {"workers": 2, "emulated_workers": 1},
+                "emulation": {"laser_noise_sigma": 0.05, "latency_ticks": 2},
+            }
+        )
+    )
+    parser = argparse.ArgumentParser()
+    train_cmd.add_arguments(parser)
+    setup = train_cmd.build_config(
+        parser.parse_args(["--config", str(path), "--emu-latency-ticks", "0"])
+    )
+    assert setup.train.emulated_workers == 1
+    assert setup.emulation.laser_noise_sigma == 0.05 and setup.emulation.latency_ticks == 0
+    assert setup.emulation.velocity_scale == 0.95  # the rest: EmulationConfig's defaults

@@ -44,12 +44,24 @@ class Evaluator:
         self.statuses: deque[str] = deque(maxlen=window)
         self.returns: deque[float] = deque(maxlen=window)
 
-    def evaluate(self, weights: Mapping[str, np.ndarray], version: int, episodes: int = 1) -> dict:
-        """Run ``episodes`` greedy episodes; returns rates over the window and this call's mean."""
+    def evaluate(
+        self,
+        weights: Mapping[str, np.ndarray],
+        version: int,
+        episodes: int = 1,
+        seed_base: int | None = None,
+    ) -> dict:
+        """Run ``episodes`` greedy episodes; returns rates over the window and this call's own.
+
+        Episodes are seeded ``seed, seed + 1, ...`` across calls (every call sees new ones);
+        with ``seed_base``, episode ``i`` of the call uses ``seed_base + i``, so calls with
+        different weights are scored on the same episodes (snapshot selection).
+        """
         self.actor.set_weights(dict(weights))
-        rets = []
-        for _ in range(episodes):
-            obs, _ = self.env.reset(seed=self.seed + self.episodes)
+        rets, call_statuses = [], []
+        for i in range(episodes):
+            seed = self.seed + self.episodes if seed_base is None else seed_base + i
+            obs, _ = self.env.reset(seed=seed)
             self.episodes += 1
             ret, done, info = 0.0, False, {}
             while not done:
@@ -63,7 +75,9 @@ class Evaluator:
             self.statuses.append(status)
             self.returns.append(ret)
             rets.append(ret)
+            call_statuses.append(status)
         return {
+            "eval_snapshot_success_rate": status_rates(call_statuses)["success_rate"],
             "eval_return": float(np.mean(rets)),
             "eval_return_window": float(np.mean(self.returns)),
             "eval_episodes": float(self.episodes),

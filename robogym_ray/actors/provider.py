@@ -19,6 +19,7 @@ import ray
 from robogym_ray.actors.remote import SUPERVISOR_NAME, get_supervisor
 from robogym_ray.actors.server_host import ServerSpec
 from robogym_ray.errors import RobotServerError
+from robogym_ray.robots.emulation import EmulationConfig
 
 log = logging.getLogger(__name__)
 
@@ -57,12 +58,15 @@ class SupervisorServerProvider:
         host: interface the servers bind (``auto``: loopback on one node, node IP on a cluster).
         real_time: pace servers against the wall clock.
         resources: custom Ray resources a server needs (places it on the nodes that have them).
+        emulation: lease emulated robots (noise, latency, dynamics differences) instead of the
+            plain simulation (domain randomisation).
     """
 
     name: str = SUPERVISOR_NAME
     host: str = "auto"
     real_time: bool = False
     resources: tuple[tuple[str, float], ...] = ()
+    emulation: EmulationConfig | None = None
 
     def acquire(
         self, robot: str, scene: str | None, options: Mapping[str, str], seed: int | None
@@ -78,6 +82,7 @@ class SupervisorServerProvider:
             host=self.host,
             real_time=self.real_time,
             resources=dict(self.resources),
+            emulation=self.emulation,
         )
         info = ray.get(supervisor.acquire.remote(spec))
         return SupervisorLease(supervisor, info["id"], info["address"], info["generation"])

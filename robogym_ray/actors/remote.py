@@ -215,10 +215,10 @@ class _Rollout(RolloutWorker):
 
 class _Evaluator(Evaluator):
     def evaluate(  # type: ignore[override]
-        self, weights_and_version: tuple[dict, int], episodes: int = 1
+        self, weights_and_version: tuple[dict, int], episodes: int = 1, seed_base: int | None = None
     ) -> dict:
         weights, version = weights_and_version
-        return super().evaluate(weights, version, episodes)
+        return super().evaluate(weights, version, episodes, seed_base)
 
 
 RolloutActor = ray.remote(_Rollout)

@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from robogym_ray.robots.base import StateSnapshot
+from robogym_ray.robots.emulation import EmulationConfig
 from robogym_ray.robots.server import RobotServerCore, RobotServerHandle, start_robot_server
 
 log = logging.getLogger(__name__)
@@ -47,10 +48,14 @@ class ServerSpec:
     """Custom Ray resources the server needs (e.g. ``{"gpu_node": 0.01}``) to pick its node."""
     fault: str | None = None
     """Testing hook: a fault (see ``FAULTS``) injected as soon as the server starts."""
+    emulation: EmulationConfig | None = None
+    """Serve an emulated real robot (noise, latency, dynamics differences) instead of the plain
+    simulation: what training with domain randomisation leases."""
 
     def key(self) -> tuple[Any, ...]:
         """What makes two specs interchangeable for a client (host/port/fault aside)."""
-        return (self.robot, self.scene, tuple(sorted(self.options.items())), self.real_time)
+        options = tuple(sorted(self.options.items()))
+        return (self.robot, self.scene, options, self.real_time, self.emulation)
 
     def with_port(self, port: int) -> ServerSpec:
         return replace(self, port=port)
@@ -131,6 +136,7 @@ class RobotServerHost:
             options=spec.options,
             host=host,
             real_time=spec.real_time,
+            emulation=spec.emulation,
         )
         try:
             return start_robot_server(spec.robot, port=spec.port, **kwargs)  # type: ignore[arg-type]

@@ -113,6 +113,7 @@ class ManagedServer:
             "id": self.id,
             "robot": self.spec.robot,
             "scene": self.spec.scene,
+            "emulated": self.spec.emulation is not None,
             "owner": self.owner,
             "state": self.state,
             "generation": self.generation,

@@ -4,41 +4,73 @@ from __future__ import annotations
 
 import argparse
 import json
-from dataclasses import fields
+from dataclasses import dataclass, fields
+from pathlib import Path
+from typing import Any
 
 from robogym_ray.actors.train_config import TrainConfig
 from robogym_ray.config import add_config_args, merge_config
 from robogym_ray.errors import ConfigError
+from robogym_ray.robots.emulation import EmulationConfig
+
+SECTIONS = ("train", "d4pg", "emulation")
+"""Keys a config file may hold: TrainConfig, D4PGConfig and (for --emulated-workers)
+EmulationConfig fields."""
+
+
+@dataclass(frozen=True)
+class TrainSetup:
+    """Everything ``robogym-ray train`` was asked for."""
+
+    train: TrainConfig
+    d4pg: dict[str, Any]
+    """D4PGConfig overrides on top of the task's preset."""
+    emulation: EmulationConfig
+    """What the emulated workers' robots differ by (used when train.emulated_workers > 0)."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     # Only flags given on the command line override the config file.
     add_config_args(parser, TrainConfig, only_given=True)
+    add_config_args(parser, EmulationConfig, prefix="emu-", only_given=True)
 
 
-def build_config(args: argparse.Namespace) -> tuple[TrainConfig, dict]:
-    given = {f.name: getattr(args, f.name) for f in fields(TrainConfig) if hasattr(args, f.name)}
-    given = {k: tuple(v) if isinstance(v, list) else v for k, v in given.items()}
-    d4pg: dict = {}
-    if given.get("config"):
-        path = given["config"]
-        try:
-            data = json.loads(open(path).read())  # noqa: SIM115 - tiny file
-        except (OSError, json.JSONDecodeError) as exc:
-            raise ConfigError(f"cannot read config file {path}: {exc}") from None
-        if not isinstance(data, dict) or set(data) - {"train", "d4pg"}:
-            raise ConfigError(f"{path}: expected a JSON object with keys 'train' and/or 'd4pg'")
-        d4pg = dict(data.get("d4pg", {}))
-        return merge_config(TrainConfig, {**data.get("train", {}), **given}, source=path), d4pg
-    return merge_config(TrainConfig, given, source="command line"), d4pg
+def _given(args: argparse.Namespace, cls: type) -> dict[str, Any]:
+    given = {f.name: getattr(args, f.name) for f in fields(cls) if hasattr(args, f.name)}
+    return {k: tuple(v) if isinstance(v, list) else v for k, v in given.items()}
+
+
+def read_sections(path: str | Path) -> dict[str, dict[str, Any]]:
+    """The sections of a config file ({"train": {...}, "d4pg": {...}, "emulation": {...}})."""
+    try:
+        data = json.loads(Path(path).read_text())
+    except (OSError, ValueError) as exc:
+        raise ConfigError(f"cannot read config file {path}: {exc}") from None
+    if not isinstance(data, dict) or set(data) - set(SECTIONS):
+        raise ConfigError(f"{path}: expected a JSON object with keys among {', '.join(SECTIONS)}")
+    for name, section in data.items():
+        if not isinstance(section, dict):
+            raise ConfigError(f"{path}: section {name!r} must be a JSON object")
+    return {name: dict(data.get(name, {})) for name in SECTIONS}
+
+
+def build_config(args: argparse.Namespace) -> TrainSetup:
+    train, emu = _given(args, TrainConfig), _given(args, EmulationConfig)
+    source = train.get("config") or "command line"
+    data = read_sections(source) if train.get("config") else {}
+    return TrainSetup(
+        train=merge_config(TrainConfig, {**data.get("train", {}), **train}, source=source),
+        d4pg=dict(data.get("d4pg", {})),
+        emulation=merge_config(EmulationConfig, {**data.get("emulation", {}), **emu}, source),
+    )
 
 
 def run(args: argparse.Namespace) -> int:
     from robogym_ray.actors.tasks import resolve_task
     from robogym_ray.actors.training import run_training
 
-    cfg, d4pg = build_config(args)
-    resolve_task(cfg.task)  # fail fast, before Ray starts, on a bad task name
-    summary = run_training(cfg, d4pg)
+    setup = build_config(args)
+    resolve_task(setup.train.task)  # fail fast, before Ray starts, on a bad task name
+    summary = run_training(setup.train, setup.d4pg, setup.emulation)
     print(json.dumps(summary), flush=True)
     return 0

@@ -16,6 +16,12 @@ class TrainConfig:
     positioning, pendulum."""
     workers: int = 2
     """Simulated rollout workers (each with its own robot server)."""
+    emulated_workers: int = 0
+    """How many of the simulated workers train on emulated robots (sensor noise, actuation
+    latency, dynamics differences: the --emu-* settings or the config file's "emulation"
+    section) instead of the plain simulation - domain randomisation for policies meant for
+    real hardware. The first N workers (the most exploratory) get them; the evaluator stays on
+    the plain simulation."""
     real_robot: tuple[str, ...] = ()
     """HOST:PORT of real robot servers; each adds a rollout worker on the task's Rob variant."""
     total_steps: int = 3000
@@ -52,6 +58,12 @@ class TrainConfig:
     """Write the replay buffer beside the final checkpoint, for a later --init-from."""
     evaluator: bool = True
     """Run an evaluator actor with the greedy policy on its own env."""
+    select_episodes: int = 0
+    """Snapshot selection: when > 0 the evaluator scores each weights snapshot on the same
+    this-many greedy episodes, and the best-scoring one (success rate, then mean return) is
+    kept as checkpoints/policy-best.pt (policy only; evaluate and export take it). The
+    learner's own final state can be a worse draw: a greedy policy's success rate swings by a
+    few points from one snapshot to the next. 0 = one new episode per snapshot, no selection."""
     worker_cpus: float = 0.25
     """Ray CPUs reserved per rollout worker (fractional: they mostly wait on their server)."""
     learner_cpus: float = 0.5
@@ -84,8 +96,15 @@ class TrainConfig:
         checks = [
             (self.workers >= 0, "workers", ">= 0"),
             (self.workers + len(self.real_robot) >= 1, "workers", ">= 1 with no real robot"),
+            (
+                0 <= self.emulated_workers <= self.workers,
+                "emulated_workers",
+                f"in [0, workers={self.workers}]",
+            ),
             (self.total_steps >= 1, "total_steps", ">= 1"),
             (self.steps_per_call >= 1, "steps_per_call", ">= 1"),
+            (self.select_episodes >= 0, "select_episodes", ">= 0"),
+            (self.evaluator or not self.select_episodes, "select_episodes", "0 without evaluator"),
             (self.weight_sync_steps >= 1, "weight_sync_steps", ">= 1"),
             (self.sigma_min >= 0, "sigma_min", ">= 0"),
             (self.worker_cpus > 0 and self.learner_cpus > 0, "worker_cpus/learner_cpus", "> 0"),

@@ -28,10 +28,12 @@ from robogym_ray.actors import training_setup as setup
 from robogym_ray.actors.evaluator import status_rates
 from robogym_ray.actors.real_client import RealRobotClientFactory
 from robogym_ray.actors.rollout import RolloutResult, box_dims, make_gym_env
+from robogym_ray.actors.selection import SnapshotSelector
 from robogym_ray.actors.tasks import TaskPreset, d4pg_for, resolve_task, safety_for
 from robogym_ray.actors.train_config import TrainConfig
 from robogym_ray.errors import ConfigError
 from robogym_ray.learner.config import D4PGConfig
+from robogym_ray.robots.emulation import EmulationConfig
 
 log = logging.getLogger(__name__)
 
@@ -63,43 +65,24 @@ class RunStats:
     eval_history: list[dict[str, float]] = field(default_factory=list)
 
 
-def worker_sigmas(d4pg: D4PGConfig, cfg: TrainConfig, n: int) -> list[float]:
-    """Ape-X style: a spread of exploration noises from d4pg.sigma down to sigma_min."""
-    if n <= 1:
-        return [d4pg.sigma] * n
-    return list(np.linspace(d4pg.sigma, min(cfg.sigma_min, d4pg.sigma), n))
-
-
-def real_env_id(env_id: str) -> str:
-    """The Rob variant of a RoboGymRay Sim id (the same task on a real robot)."""
-    if env_id.startswith("RoboGymRay/") and env_id.endswith("Sim-v0"):
-        return env_id[: -len("Sim-v0")] + "Rob-v0"
-    raise ValueError(f"{env_id} has no real-robot variant")
-
-
-def check_resources(cfg: TrainConfig) -> None:
-    """Fail fast when the actors cannot all be scheduled (they would wait forever otherwise)."""
-    available = ray.cluster_resources().get("CPU", 0.0)
-    demand = cfg.cpu_demand()
-    if demand > available + 1e-9:
-        raise ConfigError(
-            f"the run reserves {demand:.2f} Ray CPUs but the cluster has {available:g}: lower "
-            f"--workers ({cfg.workers}), --worker-cpus ({cfg.worker_cpus}), --server-cpus "
-            f"({cfg.server_cpus}) or --learner-cpus ({cfg.learner_cpus}), or add nodes"
-        )
-
-
 class TrainingRun:
     """Owns the actors of one run; ``run()`` drives it to ``total_steps``."""
 
-    def __init__(self, cfg: TrainConfig, d4pg: D4PGConfig, preset: TaskPreset) -> None:
+    def __init__(
+        self,
+        cfg: TrainConfig,
+        d4pg: D4PGConfig,
+        preset: TaskPreset,
+        emulation: EmulationConfig | None = None,
+    ) -> None:
         self.cfg, self.d4pg, self.preset = cfg, d4pg, preset
+        self.emulation = emulation or EmulationConfig()
         self.run_dir = Path(cfg.logdir) / (
             cfg.run_name or f"{preset.env_id.split('/')[-1]}-{time.strftime('%Y%m%d-%H%M%S')}"
         )
         self.run_dir.mkdir(parents=True, exist_ok=True)
         self.stats = RunStats()
-        check_resources(cfg)
+        setup.check_resources(cfg)
         self.supervision = setup.start_supervision(cfg, preset.env_id, self.run_dir.name)
         self.learner: Any = None
         self.evaluator: Any = None
@@ -146,12 +129,27 @@ class TrainingRun:
             )
         self.weights_ref = self.learner.get_weights.remote()
         self._weights_stale = False
+        self._eval_weights_ref: Any = None
+        self.selector = (
+            SnapshotSelector(self.run_dir / "checkpoints")
+            if cfg.select_episodes and self.evaluator is not None
+            else None
+        )
 
     def _env_kwargs(self, index: int, probe: bool = False) -> dict[str, Any]:
-        """Sim envs lease their servers from the supervisor (the probe env never resets)."""
+        """Sim envs lease their servers from the supervisor (the probe env never resets); the
+        first ``emulated_workers`` lease emulated robots."""
         if self.supervision is None or probe:
             return {}
-        return {"provider": self.supervision.provider()}
+        emulated = index < self.cfg.emulated_workers
+        return {"provider": self.supervision.provider(self.emulation if emulated else None)}
+
+    def config_record(self) -> dict[str, Any]:
+        """What ``config.json`` holds: a config file ``--config`` reads back."""
+        record = {"train": asdict(self.cfg), "d4pg": asdict(self.d4pg)}
+        if self.cfg.emulated_workers:
+            record["emulation"] = asdict(self.emulation)
+        return record
 
     def restart_counts(self) -> dict[str, int]:
         return {} if self.supervision is None else self.supervision.restart_counts()
@@ -159,7 +157,7 @@ class TrainingRun:
     def _start_workers(self) -> list[WorkerSlot]:
         cfg = self.cfg
         n = cfg.workers + len(cfg.real_robot)
-        sigmas = worker_sigmas(self.d4pg, cfg, n)
+        sigmas = setup.worker_sigmas(self.d4pg, cfg, n)
         slots = []
         for i in range(n):
             if i < cfg.workers:
@@ -181,7 +179,7 @@ class TrainingRun:
         """A Rob-variant env that reaches the robot only through its real-robot actor."""
         address = self.cfg.real_robot[k]
         name = f"real-{self.run_dir.name}-{k}"
-        env_id = real_env_id(self.preset.env_id)
+        env_id = setup.real_env_id(self.preset.env_id)
         self.real_robots.append(remote.start_real_robot(name, address, safety_for(env_id)))
         kwargs = {"rs_address": address, "client_factory": RealRobotClientFactory(name)}
         return make_gym_env(env_id, kwargs)
@@ -270,6 +268,11 @@ class TrainingRun:
         if self._weights_stale:
             self.weights_ref = self.learner.get_weights.remote()
             self._weights_stale = False
+        self._eval_weights_ref = self.weights_ref  # the snapshot a selector may keep
+        if self.selector is not None:
+            # The same episodes for every snapshot: seeds the workers and `evaluate` never use.
+            n, base = self.cfg.select_episodes, self.cfg.seed + 20_000
+            return self.evaluator.evaluate.remote(self.weights_ref, n, base)
         return self.evaluator.evaluate.remote(self.weights_ref)
 
     def _poll_eval(self, ref: Any) -> Any:
@@ -284,8 +287,12 @@ class TrainingRun:
                     "learner_steps": int(self.stats.learner.get("learner_steps", 0)),
                     "return": round(self.stats.eval["eval_return"], 2),
                     "success_rate": self.stats.eval["eval_success_rate"],
+                    "snapshot_success_rate": self.stats.eval["eval_snapshot_success_rate"],
                 }
             )
+            if self.selector is not None and self.selector.better(self.stats.eval):
+                weights, version = ray.get(self._eval_weights_ref)
+                self.selector.keep(self.stats.eval, weights, version, self.stats.env_steps)
         except RayActorError:
             log.warning("evaluator failed; evaluation stops")
             return None
@@ -298,6 +305,8 @@ class TrainingRun:
         statuses = list(s.statuses)
         out = {f"train/{k}": v for k, v in status_rates(statuses).items()} if statuses else {}
         out.update({f"eval/{k.removeprefix('eval_')}": v for k, v in s.eval.items()})
+        if self.selector is not None and self.selector.best is not None:
+            out["eval/best_snapshot_success_rate"] = self.selector.best[0]
         out.update(
             {
                 "train/return_last100": float(np.mean(s.returns)) if s.returns else 0.0,
@@ -342,6 +351,7 @@ class TrainingRun:
             "worker_steps": {str(k): v for k, v in sorted(self.stats.worker_steps.items())},
             "robot_errors": self.stats.robot_errors,
             "eval_history": self.stats.eval_history,
+            "best_snapshot": None if self.selector is None else self.selector.summary(),
             "server_nodes": [] if self.supervision is None else self.supervision.server_nodes(),
             "final_status_counts": dict(Counter(self.stats.statuses)),
             "logdir": str(self.run_dir),
@@ -360,21 +370,29 @@ class TrainingRun:
             self.supervision.stop()
 
 
-def run_training(cfg: TrainConfig, d4pg_overrides: Mapping[str, Any] | None = None) -> dict:
-    """Run one training to completion; returns the summary (also in ``run_dir/summary.json``)."""
+def run_training(
+    cfg: TrainConfig,
+    d4pg_overrides: Mapping[str, Any] | None = None,
+    emulation: EmulationConfig | None = None,
+) -> dict:
+    """Run one training to completion; returns the summary (also in ``run_dir/summary.json``).
+
+    ``emulation`` is what the ``cfg.emulated_workers`` workers' robots differ by (default
+    ``EmulationConfig()``, the emulated robot ``robogym-ray serve --emulate-hardware`` serves).
+    """
     preset = resolve_task(cfg.task)
     d4pg = d4pg_for(preset, d4pg_overrides)
+    if cfg.emulated_workers and not preset.env_id.startswith("RoboGymRay/"):
+        raise ConfigError(f"--emulated-workers needs a robot task; {preset.env_id} has none")
     started_ray = setup.ensure_ray(cfg)
     try:
-        run = TrainingRun(cfg, d4pg, preset)
+        run = TrainingRun(cfg, d4pg, preset, emulation)
     except BaseException:
         if started_ray:
             ray.shutdown()
         raise
     try:
-        (run.run_dir / "config.json").write_text(
-            json.dumps({"train": asdict(cfg), "d4pg": asdict(d4pg)}, indent=2)
-        )
+        (run.run_dir / "config.json").write_text(json.dumps(run.config_record(), indent=2))
         return run.run()
     finally:
         run.shutdown()

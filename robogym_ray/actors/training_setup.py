@@ -9,6 +9,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import ray
 import torch
 
@@ -22,6 +23,7 @@ from robogym_ray.errors import ConfigError
 from robogym_ray.learner.config import D4PGConfig
 from robogym_ray.learner.learner import REPLAY_SUFFIX
 from robogym_ray.learner.networks import DistributionalCritic, Policy
+from robogym_ray.robots.emulation import EmulationConfig
 
 log = logging.getLogger(__name__)
 
@@ -35,6 +37,32 @@ def ensure_ray(cfg: TrainConfig) -> bool:
     else:
         ray.init(num_cpus=cfg.num_cpus, include_dashboard=False, log_to_driver=False)
     return True
+
+
+def worker_sigmas(d4pg: D4PGConfig, cfg: TrainConfig, n: int) -> list[float]:
+    """Ape-X style: a spread of exploration noises from d4pg.sigma down to sigma_min."""
+    if n <= 1:
+        return [d4pg.sigma] * n
+    return list(np.linspace(d4pg.sigma, min(cfg.sigma_min, d4pg.sigma), n))
+
+
+def real_env_id(env_id: str) -> str:
+    """The Rob variant of a RoboGymRay Sim id (the same task on a real robot)."""
+    if env_id.startswith("RoboGymRay/") and env_id.endswith("Sim-v0"):
+        return env_id[: -len("Sim-v0")] + "Rob-v0"
+    raise ValueError(f"{env_id} has no real-robot variant")
+
+
+def check_resources(cfg: TrainConfig) -> None:
+    """Fail fast when the actors cannot all be scheduled (they would wait forever otherwise)."""
+    available = ray.cluster_resources().get("CPU", 0.0)
+    demand = cfg.cpu_demand()
+    if demand > available + 1e-9:
+        raise ConfigError(
+            f"the run reserves {demand:.2f} Ray CPUs but the cluster has {available:g}: lower "
+            f"--workers ({cfg.workers}), --worker-cpus ({cfg.worker_cpus}), --server-cpus "
+            f"({cfg.server_cpus}) or --learner-cpus ({cfg.learner_cpus}), or add nodes"
+        )
 
 
 def learner_gpus(cfg: TrainConfig) -> float:
@@ -52,8 +80,10 @@ class Supervision:
     owned: bool
     resources: tuple[tuple[str, float], ...] = ()
 
-    def provider(self) -> SupervisorServerProvider:
-        return SupervisorServerProvider(name=self.name, resources=self.resources)
+    def provider(self, emulation: EmulationConfig | None = None) -> SupervisorServerProvider:
+        return SupervisorServerProvider(
+            name=self.name, resources=self.resources, emulation=emulation
+        )
 
     def restart_counts(self) -> dict[str, int]:
         """Restarts by cause over every server of this supervisor."""

@@ -171,3 +171,35 @@ def test_server_failing_every_restart_is_given_up(ray_cluster: None) -> None:
     finally:
         ray.get(actor.shutdown.remote())
         ray.kill(actor, no_restart=True)
+
+
+def _noisy(address: str) -> bool:
+    """Two readings (one action apart) of a robot told to stand still differ only if its sensors
+    are noisy (or its commands biased, which the emulation also does)."""
+    with RobotServerClient(address, deadlines=Deadlines.uniform(5.0)) as client:
+        first = client.send_action_get_state([0.0, 0.0]).state
+        second = client.send_action_get_state([0.0, 0.0]).state
+    return not np.array_equal(np.asarray(first), np.asarray(second))
+
+
+def test_provider_leases_emulated_robots_that_stay_emulated_after_a_restart(
+    supervisor: Any,
+) -> None:
+    from robogym_ray.actors.provider import SupervisorServerProvider
+    from robogym_ray.robots.emulation import EmulationConfig
+
+    emulation = EmulationConfig(laser_noise_sigma=0.05)
+    emulated = SupervisorServerProvider(name="test-supervisor", emulation=emulation)
+    lease = emulated.acquire("mir100", "empty", {}, 3)
+    plain = SupervisorServerProvider(name="test-supervisor").acquire("mir100", "empty", {}, 3)
+    try:
+        assert lease.server_id != plain.server_id
+        before = _info(supervisor, lease.server_id)
+        assert before["emulated"] and not _info(supervisor, plain.server_id)["emulated"]
+        assert _noisy(lease.address) and not _noisy(plain.address)
+        os.kill(before["pid"], signal.SIGKILL)
+        after = _wait_restarted(supervisor, lease.server_id, before["generation"])
+        assert after["emulated"] and _noisy(after["address"])
+    finally:
+        lease.release()
+        plain.release()

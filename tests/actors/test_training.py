@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import os
 import signal
 import threading
@@ -9,13 +10,15 @@ import time
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 import ray
 
-from robogym_ray.actors import remote
+from robogym_ray.actors import remote, train_cmd
 from robogym_ray.actors.train_config import TrainConfig
 from robogym_ray.actors.training import run_training
 from robogym_ray.errors import ConfigError
+from robogym_ray.robots.emulation import EmulationConfig
 from robogym_ray.robots.serve import serve_process
 
 pytestmark = [pytest.mark.ray, pytest.mark.slow, pytest.mark.usefixtures("ray_cluster")]
@@ -210,3 +213,75 @@ def test_a_run_continues_from_another_runs_checkpoint_and_replay(tmp_path: Path)
     assert second["learner_steps"] > first["learner_steps"]
     with pytest.raises(ConfigError, match="init-from"):
         run_training(TrainConfig(**common, run_name="third", init_from=str(tmp_path / "x.pt")))
+
+
+def test_emulated_workers_train_on_emulated_robots_and_the_evaluator_does_not(
+    tmp_path: Path,
+) -> None:
+    """Domain randomisation: worker 0 leases an emulated MiR100, worker 1 and the evaluator the
+    plain simulation; config.json records the emulation and reads back through --config."""
+    run = "dr"
+    cfg = TrainConfig(
+        task=NAV,
+        workers=2,
+        emulated_workers=1,
+        total_steps=1500,
+        logdir=str(tmp_path),
+        run_name=run,
+        progress=False,
+    )
+    emulation = EmulationConfig(laser_noise_sigma=0.03, latency_ticks=2)
+    seen: list[list[bool]] = []
+    done = threading.Event()
+
+    def watch() -> None:
+        while not done.is_set():
+            sup = remote.get_supervisor(f"{remote.SUPERVISOR_NAME}-{run}")
+            if sup is not None:
+                try:
+                    servers = [s for s in ray.get(sup.status.remote()) if s["leased"]]
+                except Exception:  # noqa: BLE001 - the run may be ending
+                    servers = []
+                if len(servers) == 3:
+                    seen.append(sorted(s["emulated"] for s in servers))
+                    return
+            time.sleep(0.3)
+
+    watcher = threading.Thread(target=watch)
+    watcher.start()
+    try:
+        summary = run_training(cfg, None, emulation)
+    finally:
+        done.set()
+        watcher.join()
+    assert summary["env_steps"] >= 1500
+    assert seen == [[False, False, True]]
+    parser = argparse.ArgumentParser()
+    train_cmd.add_arguments(parser)
+    again = train_cmd.build_config(
+        parser.parse_args(["--config", str(tmp_path / run / "config.json")])
+    )
+    assert again.emulation == emulation and again.train.emulated_workers == 1
+
+
+def test_snapshot_selection_keeps_a_best_policy_that_evaluate_reads(tmp_path: Path) -> None:
+    from robogym_ray.export import load_policy
+
+    cfg = TrainConfig(
+        task="pendulum",
+        workers=1,
+        total_steps=1500,
+        logdir=str(tmp_path),
+        run_name="sel",
+        progress=False,
+        random_steps=200,
+        select_episodes=1,
+    )
+    summary = run_training(cfg, {"min_replay_size": 256})
+    best = summary["best_snapshot"]
+    assert best["snapshots_scored"] >= 1 and Path(best["path"]).name == "policy-best.pt"
+    scored = [h for h in summary["eval_history"] if "snapshot_success_rate" in h]
+    assert len(scored) == best["snapshots_scored"]
+    policy = load_policy(best["path"])  # what `robogym-ray evaluate` / `export` load
+    assert policy.info.env_id == "Pendulum-v1"
+    assert policy(np.zeros(3)).shape == (1,)

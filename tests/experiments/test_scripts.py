@@ -23,12 +23,15 @@ def script(name: str) -> ModuleType:
     return module
 
 
-@pytest.mark.parametrize("name", ["navigation", "positioning"])
+@pytest.mark.parametrize("name", ["navigation", "positioning", "navigation-continue-dr"])
 def test_configs_load_and_flags_override_them(name: str) -> None:
     config = EXPERIMENTS / "configs" / f"{name}.json"
     args = build_parser(config, "").parse_args(["--total-steps", "123", "--workers", "1"])
-    train, d4pg = experiment_configs(args)
-    assert (train.total_steps, train.workers, train.run_name) == (123, 1, name)
+    train, d4pg, emulation = experiment_configs(args)
+    assert (train.total_steps, train.workers) == (123, 1)
+    assert train.run_name == name.replace("-continue", "")
+    assert (train.emulated_workers > 0) == ("dr" in name)
+    assert emulation.latency_ticks >= 0
     assert d4pg["layer_norm"] is True
     from robogym_ray.actors.tasks import d4pg_for, resolve_task
 

@@ -1,0 +1,64 @@
+"""Snapshot selection: keep the policy snapshot that scored best on a fixed set of episodes.
+
+A greedy policy's success rate moves by a few points from one weights snapshot to the next
+(measured on UR10 positioning: 96.7 % after 108 minutes, 95.0 % twelve minutes later, each over
+the same 300 episodes), so the learner's last state is one draw among many. With
+``TrainConfig.select_episodes`` the evaluator scores every snapshot it gets on the same
+episodes (paired comparison: the difference between two snapshots is not buried under
+episode-to-episode variance), and ``SnapshotSelector`` writes the best one's policy to
+``checkpoints/policy-best.pt``. Its score is selected on the evaluator's episodes, so it is
+optimistic: judge the kept policy on other seeds (``robogym-ray evaluate`` uses 1000+).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+BEST_POLICY_NAME = "policy-best.pt"
+
+
+class SnapshotSelector:
+    """Tracks the best (success rate, mean return) and saves that snapshot's policy."""
+
+    def __init__(self, checkpoint_dir: Path) -> None:
+        self.path = checkpoint_dir / BEST_POLICY_NAME
+        self.best: tuple[float, float] | None = None
+        self.record: dict[str, Any] = {}
+        self.scored = 0
+
+    def better(self, result: Mapping[str, float]) -> bool:
+        """Whether an evaluation result beats the best so far (counts it as scored)."""
+        self.scored += 1
+        score = (float(result["eval_snapshot_success_rate"]), float(result["eval_return"]))
+        return self.best is None or score > self.best
+
+    def keep(self, result: Mapping[str, float], weights: Mapping[str, np.ndarray], version: int,
+             env_steps: int) -> None:  # fmt: skip
+        """Write ``weights`` as the best policy (atomically: a crash never leaves half a file)."""
+        self.best = (float(result["eval_snapshot_success_rate"]), float(result["eval_return"]))
+        self.record = {
+            "path": str(self.path),
+            "learner_steps": int(version),
+            "env_steps": int(env_steps),
+            "success_rate": self.best[0],
+            "return": round(self.best[1], 3),
+            "snapshots_scored": self.scored,
+        }
+        state = {
+            # The layout of a learner checkpoint's policy part, so evaluate/export read it as one.
+            "nets": {"policy": {k: torch.from_numpy(np.array(v)) for k, v in weights.items()}},
+            "selection": self.record,
+        }
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = self.path.with_suffix(".tmp")
+        torch.save(state, tmp)
+        os.replace(tmp, self.path)
+
+    def summary(self) -> dict[str, Any]:
+        return {**self.record, "snapshots_scored": self.scored}
