@@ -58,6 +58,10 @@ class TrainConfig:
     """Write the replay buffer beside the final checkpoint, for a later --init-from."""
     evaluator: bool = True
     """Run an evaluator actor with the greedy policy on its own env."""
+    eval_interval_s: float = 0.0
+    """Seconds from the start of one evaluator call to the start of the next (0 = back to
+    back). On 2 cores a back-to-back evaluator costs the learner 15-20 percent of its steps
+    (docs/benchmarks.md); an interval bounds that share."""
     select_episodes: int = 0
     """Snapshot selection: when > 0 the evaluator scores each weights snapshot on the same
     this-many greedy episodes, and the best-scoring one (success rate, then mean return) is
@@ -104,6 +108,7 @@ class TrainConfig:
             (self.total_steps >= 1, "total_steps", ">= 1"),
             (self.steps_per_call >= 1, "steps_per_call", ">= 1"),
             (self.select_episodes >= 0, "select_episodes", ">= 0"),
+            (self.eval_interval_s >= 0, "eval_interval_s", ">= 0"),
             (self.evaluator or not self.select_episodes, "select_episodes", "0 without evaluator"),
             (self.weight_sync_steps >= 1, "weight_sync_steps", ">= 1"),
             (self.sigma_min >= 0, "sigma_min", ">= 0"),

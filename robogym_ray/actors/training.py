@@ -130,6 +130,7 @@ class TrainingRun:
         self.weights_ref = self.learner.get_weights.remote()
         self._weights_stale = False
         self._eval_weights_ref: Any = None
+        self._next_eval_at = 0.0
         self.selector = (
             SnapshotSelector(self.run_dir / "checkpoints")
             if cfg.select_episodes and self.evaluator is not None
@@ -269,6 +270,7 @@ class TrainingRun:
             self.weights_ref = self.learner.get_weights.remote()
             self._weights_stale = False
         self._eval_weights_ref = self.weights_ref  # the snapshot a selector may keep
+        self._next_eval_at = time.perf_counter() + self.cfg.eval_interval_s
         if self.selector is not None:
             # The same episodes for every snapshot: seeds the workers and `evaluate` never use.
             n, base = self.cfg.select_episodes, self.cfg.seed + 20_000
@@ -276,7 +278,10 @@ class TrainingRun:
         return self.evaluator.evaluate.remote(self.weights_ref)
 
     def _poll_eval(self, ref: Any) -> Any:
-        if ref is None or not ray.wait([ref], timeout=0)[0]:
+        if ref is None:  # between two calls (eval_interval_s), or the evaluator is gone
+            due = self.evaluator is not None and time.perf_counter() >= self._next_eval_at
+            return self._start_eval() if due else None
+        if not ray.wait([ref], timeout=0)[0]:
             return ref
         try:
             self.stats.eval = ray.get(ref)
@@ -295,8 +300,9 @@ class TrainingRun:
                 self.selector.keep(self.stats.eval, weights, version, self.stats.env_steps)
         except RayActorError:
             log.warning("evaluator failed; evaluation stops")
+            self.evaluator = None
             return None
-        return self._start_eval()
+        return self._poll_eval(None)
 
     def _scalars(self, start: float) -> dict[str, float]:
         s, wall = self.stats, max(1e-9, time.perf_counter() - start)

@@ -285,3 +285,12 @@ def test_snapshot_selection_keeps_a_best_policy_that_evaluate_reads(tmp_path: Pa
     policy = load_policy(best["path"])  # what `robogym-ray evaluate` / `export` load
     assert policy.info.env_id == "Pendulum-v1"
     assert policy(np.zeros(3)).shape == (1,)
+
+
+def test_eval_interval_spaces_the_evaluator_calls(tmp_path: Path) -> None:
+    common = dict(task="pendulum", workers=1, total_steps=1500, logdir=str(tmp_path),
+                  progress=False, random_steps=200)  # fmt: skip
+    spaced = run_training(TrainConfig(**common, run_name="spaced", eval_interval_s=1e6))
+    back_to_back = run_training(TrainConfig(**common, run_name="b2b"))
+    assert len(spaced["eval_history"]) == 1  # the first call, then none for 10^6 s
+    assert len(back_to_back["eval_history"]) > 1
