@@ -28,6 +28,11 @@ import torch
 BEST_POLICY_NAME = "policy-best.pt"
 
 
+def score(result: Mapping[str, float]) -> tuple[float, float]:
+    """An evaluator result's rank: success rate on its episodes, then their mean return."""
+    return float(result["eval_snapshot_success_rate"]), float(result["eval_return"])
+
+
 class SnapshotSelector:
     """Tracks the best (success rate, mean return) and saves that snapshot's policy."""
 
@@ -40,13 +45,12 @@ class SnapshotSelector:
     def better(self, result: Mapping[str, float]) -> bool:
         """Whether an evaluation result beats the best so far (counts it as scored)."""
         self.scored += 1
-        score = (float(result["eval_snapshot_success_rate"]), float(result["eval_return"]))
-        return self.best is None or score > self.best
+        return self.best is None or score(result) > self.best
 
     def keep(self, result: Mapping[str, float], weights: Mapping[str, np.ndarray], version: int,
              env_steps: int) -> None:  # fmt: skip
         """Write ``weights`` as the best policy (atomically: a crash never leaves half a file)."""
-        self.best = (float(result["eval_snapshot_success_rate"]), float(result["eval_return"]))
+        self.best = score(result)
         self.record = {
             "path": str(self.path),
             "learner_steps": int(version),
