@@ -179,17 +179,14 @@ def test_a_run_that_cannot_fit_the_cluster_is_refused(tmp_path: Path) -> None:
         run_training(cfg)
 
 
+def pendulum(tmp_path: Path, run_name: str, total_steps: int, **more: Any) -> TrainConfig:
+    """A one-worker Pendulum-v1 run (no robot servers): the cheapest real training."""
+    return TrainConfig(task="pendulum", workers=1, total_steps=total_steps, logdir=str(tmp_path),
+                       run_name=run_name, progress=False, random_steps=200, **more)  # fmt: skip
+
+
 def test_pendulum_runs_without_a_supervisor(tmp_path: Path) -> None:
-    cfg = TrainConfig(
-        task="pendulum",
-        workers=1,
-        total_steps=600,
-        logdir=str(tmp_path),
-        run_name="pend",
-        progress=False,
-        random_steps=200,
-    )
-    summary = run_training(cfg)
+    summary = run_training(pendulum(tmp_path, "pend", 600))
     assert summary["env_steps"] >= 600 and summary["restarts"] == {}
 
 
@@ -267,30 +264,19 @@ def test_emulated_workers_train_on_emulated_robots_and_the_evaluator_does_not(
 def test_snapshot_selection_keeps_a_best_policy_that_evaluate_reads(tmp_path: Path) -> None:
     from robogym_ray.export import load_policy
 
-    cfg = TrainConfig(
-        task="pendulum",
-        workers=1,
-        total_steps=1500,
-        logdir=str(tmp_path),
-        run_name="sel",
-        progress=False,
-        random_steps=200,
-        select_episodes=1,
+    summary = run_training(
+        pendulum(tmp_path, "sel", 1500, select_episodes=1), {"min_replay_size": 256}
     )
-    summary = run_training(cfg, {"min_replay_size": 256})
     best = summary["best_snapshot"]
     assert best["snapshots_scored"] >= 1 and Path(best["path"]).name == "policy-best.pt"
-    scored = [h for h in summary["eval_history"] if "snapshot_success_rate" in h]
-    assert len(scored) == best["snapshots_scored"]
+    assert len(summary["eval_history"]) == best["snapshots_scored"]  # every evaluation scored
     policy = load_policy(best["path"])  # what `robogym-ray evaluate` / `export` load
     assert policy.info.env_id == "Pendulum-v1"
     assert policy(np.zeros(3)).shape == (1,)
 
 
 def test_eval_interval_spaces_the_evaluator_calls(tmp_path: Path) -> None:
-    common = dict(task="pendulum", workers=1, total_steps=1500, logdir=str(tmp_path),
-                  progress=False, random_steps=200)  # fmt: skip
-    spaced = run_training(TrainConfig(**common, run_name="spaced", eval_interval_s=1e6))
-    back_to_back = run_training(TrainConfig(**common, run_name="b2b"))
+    spaced = run_training(pendulum(tmp_path, "spaced", 1500, eval_interval_s=1e6))
+    back_to_back = run_training(pendulum(tmp_path, "b2b", 1500))
     assert len(spaced["eval_history"]) == 1  # the first call, then none for 10^6 s
     assert len(back_to_back["eval_history"]) > 1
