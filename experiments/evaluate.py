@@ -48,7 +48,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     cfg = config_from_args(EvaluationConfig, args)
     with contextlib.ExitStack() as stack:
         if args.emulate:
-            env_id = cfg.env_id or load_policy(args.policy).info.env_id
+            env_id = cfg.env_id or load_policy(args.policy, cfg.online_weights).info.env_id
             if env_id is None:
                 raise ConfigError("--emulate needs --env-id (the policy does not name its env)")
             address = stack.enter_context(emulated_server(env_id, args.serve_seed, args.serve_arg))

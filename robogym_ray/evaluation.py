@@ -54,6 +54,9 @@ class EvaluationConfig:
     """Shared token of the robot server, if it wants one."""
     via_actor: bool = False
     """Drive the robot server through a real-robot actor on a local Ray (safety filter)."""
+    online_weights: bool = False
+    """Evaluate a learner.pt's online policy even when the run kept a Polyak-averaged one
+    (policy_average_tau > 0), which is evaluated by default."""
     out: str | None = None
     """Directory for evaluation.json and evaluation.md (default: print only)."""
 
@@ -233,9 +236,11 @@ def evaluate(policy_path: str | Path, cfg: EvaluationConfig) -> EvaluationResult
     import gymnasium as gym
 
     import robogym_ray.envs  # noqa: F401 - registers the ids
-    from robogym_ray.export import load_policy
+    from robogym_ray.export import load_policy, sidecar_path
 
-    policy = load_policy(policy_path)
+    policy = load_policy(policy_path, cfg.online_weights)
+    # A checkpoint's label says which of its policies ran (PATH#policy_average).
+    label = str(policy_path) if sidecar_path(policy_path).exists() else str(policy.info.source)
     env_id = cfg.env_id or policy.info.env_id
     if env_id is None:
         raise ConfigError(f"no env id known for {policy_path}: pass --env-id")
@@ -256,7 +261,7 @@ def evaluate(policy_path: str | Path, cfg: EvaluationConfig) -> EvaluationResult
         env = gym.make(env_id, **kwargs)
         stack.callback(env.close)
         _check_dims(env, policy.info.obs_dim, policy.info.act_dim, env_id)
-        result = EvaluationResult(env_id, cfg.rs_address, str(policy_path))
+        result = EvaluationResult(env_id, cfg.rs_address, label)
         start = time.perf_counter()
         result.episodes = list(run_episodes(policy, env, cfg.episodes, cfg.seed))
         result.wall_s = time.perf_counter() - start

@@ -70,20 +70,30 @@ def policy_from_state_dict(state: dict[str, torch.Tensor]) -> tuple[nn.Module, P
     return policy, PolicyInfo(obs_dim, act_dim, hidden, layer_norm)
 
 
-def load_checkpoint_policy(checkpoint: str | Path) -> tuple[nn.Module, PolicyInfo]:
-    """The online policy of a ``learner.pt`` (only the policy weights are used)."""
+def load_checkpoint_policy(
+    checkpoint: str | Path, online: bool = False
+) -> tuple[nn.Module, PolicyInfo]:
+    """The policy of a ``learner.pt`` (only the policy weights are used).
+
+    That is the Polyak-averaged policy when the run kept one (``policy_average_tau > 0``: the
+    one its evaluator scored), else the online one; ``online=True`` always takes the online
+    policy. ``PolicyInfo.source`` says which: ``PATH`` or ``PATH#policy_average``.
+    """
     try:
         state = torch.load(checkpoint, map_location="cpu", weights_only=True)
     except (OSError, RuntimeError, EOFError) as exc:
         raise ConfigError(f"cannot read checkpoint {checkpoint}: {exc}") from None
     try:
-        policy_state = state["nets"]["policy"]
+        nets = state["nets"]
+        name = "policy" if online or "policy_average" not in nets else "policy_average"
+        policy_state = nets[name]
     except (KeyError, TypeError):
         raise ConfigError(
             f"{checkpoint} is not a D4PGLearner checkpoint (no nets.policy)"
         ) from None
     policy, info = policy_from_state_dict(policy_state)
-    return policy, PolicyInfo(**{**asdict(info), "source": str(checkpoint)})
+    source = str(checkpoint) if name == "policy" else f"{checkpoint}#{name}"
+    return policy, PolicyInfo(**{**asdict(info), "source": source})
 
 
 def env_id_of_run(checkpoint: str | Path) -> str | None:
@@ -115,9 +125,17 @@ def action_bounds(env_id: str) -> tuple[tuple[float, ...], tuple[float, ...]]:
         env.close()
 
 
-def export_policy(checkpoint: str | Path, out: str | Path, env_id: str | None = None) -> PolicyInfo:
+ONLINE_WEIGHTS_HELP = (
+    "Use the checkpoint's online policy even when the run kept a Polyak-averaged one "
+    "(policy_average_tau > 0), which is used by default."
+)
+
+
+def export_policy(
+    checkpoint: str | Path, out: str | Path, env_id: str | None = None, online: bool = False
+) -> PolicyInfo:
     """Write the checkpoint's policy as TorchScript to ``out`` plus its sidecar JSON."""
-    policy, info = load_checkpoint_policy(checkpoint)
+    policy, info = load_checkpoint_policy(checkpoint, online)
     env_id = env_id or env_id_of_run(checkpoint)
     low, high = action_bounds(env_id) if env_id else (None, None)
     info = PolicyInfo(**{**asdict(info), "env_id": env_id, "action_low": low, "action_high": high})
@@ -157,11 +175,14 @@ class PolicyFunction:
             return self.module(batch)[0].numpy().astype(np.float32)
 
 
-def load_policy(path: str | Path) -> PolicyFunction:
-    """An exported policy (it has a sidecar) or a learner checkpoint."""
+def load_policy(path: str | Path, online: bool = False) -> PolicyFunction:
+    """An exported policy (it has a sidecar) or a learner checkpoint (see
+    :func:`load_checkpoint_policy` for ``online``)."""
     if sidecar_path(path).exists():
+        if online:
+            raise ConfigError(f"{path} is an exported policy; --online-weights needs a learner.pt")
         return PolicyFunction(*load_exported(path))
-    module, info = load_checkpoint_policy(path)
+    module, info = load_checkpoint_policy(path, online)
     return PolicyFunction(module, PolicyInfo(**{**asdict(info), "env_id": env_id_of_run(path)}))
 
 
@@ -174,9 +195,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=None,
         help="Env id the policy drives (default: from the run's config.json).",
     )
+    parser.add_argument("--online-weights", action="store_true", help=ONLINE_WEIGHTS_HELP)
 
 
 def run(args: argparse.Namespace) -> int:
-    info: Any = export_policy(args.checkpoint, args.out, args.env_id)
+    info: Any = export_policy(args.checkpoint, args.out, args.env_id, args.online_weights)
     print(json.dumps({"out": args.out, "sidecar": str(sidecar_path(args.out)), **asdict(info)}))
     return 0

@@ -99,6 +99,10 @@ class LearnerService:
     def get_weights(self) -> tuple[dict[str, np.ndarray], int]:
         return self.learner.get_weights(), self.version
 
+    def get_eval_weights(self) -> tuple[dict[str, np.ndarray], int]:
+        """What the evaluator scores: the policy average when the learner keeps one."""
+        return self.learner.get_eval_weights(), self.version
+
     def checkpoint(self, include_replay: bool = False) -> str | None:
         """Write the checkpoint atomically (a crash mid-write never leaves a broken file).
 

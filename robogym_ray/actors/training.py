@@ -266,16 +266,15 @@ class TrainingRun:
     def _start_eval(self) -> Any:
         if self.evaluator is None:
             return None
-        if self._weights_stale:
-            self.weights_ref = self.learner.get_weights.remote()
-            self._weights_stale = False
-        self._eval_weights_ref = self.weights_ref  # the snapshot a selector may keep
+        # Its own fetch: with policy averaging the evaluator scores the average, not the
+        # online weights the workers act with.
+        self._eval_weights_ref = self.learner.get_eval_weights.remote()  # a selector may keep it
         self._next_eval_at = time.perf_counter() + self.cfg.eval_interval_s
         if self.selector is not None:
             # The same episodes for every snapshot: seeds the workers and `evaluate` never use.
             n, base = self.cfg.select_episodes, self.cfg.seed + 20_000
-            return self.evaluator.evaluate.remote(self.weights_ref, n, base)
-        return self.evaluator.evaluate.remote(self.weights_ref)
+            return self.evaluator.evaluate.remote(self._eval_weights_ref, n, base)
+        return self.evaluator.evaluate.remote(self._eval_weights_ref)
 
     def _poll_eval(self, ref: Any) -> Any:
         if ref is None:  # between two calls (eval_interval_s), or the evaluator is gone

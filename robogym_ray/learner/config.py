@@ -60,6 +60,11 @@ class D4PGConfig:
     """Learner steps between hard copies of the online networks into the targets."""
     target_tau: float = 0.0
     """If > 0, Polyak-average the targets by this much every step instead of hard copies."""
+    policy_average_tau: float = 0.0
+    """If > 0, also keep a Polyak average of the online policy (moved this fraction of the way
+    every learner step); the evaluator scores it, checkpoints store it as ``nets.policy_average``
+    and ``evaluate`` / ``export`` use it by default. The workers still act with the online
+    policy. It damps the greedy policy's snapshot-to-snapshot swings (docs/results.md)."""
     samples_per_insert: float = 32.0
     """Replayed samples per inserted transition; batch_size / this = learner steps per insert."""
 
@@ -97,6 +102,12 @@ class D4PGConfig:
             (self.n_step >= 1, "n_step", self.n_step, ">= 1"),
             (self.batch_size >= 1, "batch_size", self.batch_size, ">= 1"),
             (0.0 <= self.target_tau <= 1.0, "target_tau", self.target_tau, "in [0, 1]"),
+            (
+                0.0 <= self.policy_average_tau < 1.0,
+                "policy_average_tau",
+                self.policy_average_tau,
+                "in [0, 1)",
+            ),
             (
                 self.target_update_period >= 1,
                 "target_update_period",

@@ -43,6 +43,10 @@ def make_adam(params: Any, lr: float) -> torch.optim.Adam:
         return torch.optim.Adam(params, lr=lr)
 
 
+def _numpy_state(net: nn.Module) -> dict[str, np.ndarray]:
+    return {k: v.detach().cpu().numpy().copy() for k, v in net.state_dict().items()}
+
+
 REPLAY_SUFFIX = ".replay.npz"
 """Appended to a checkpoint's path for the file holding its replay buffer."""
 
@@ -68,6 +72,9 @@ class D4PGLearner:
         ).to(self.device)
         self.target_policy = copy.deepcopy(self.policy).requires_grad_(False)
         self.target_critic = copy.deepcopy(self.critic).requires_grad_(False)
+        self.policy_average: Policy | None = (
+            copy.deepcopy(self.policy).requires_grad_(False) if c.policy_average_tau > 0 else None
+        )
         self.policy_opt = make_adam(self.policy.parameters(), c.policy_lr)
         self.critic_opt = make_adam(self.critic.parameters(), c.critic_lr)
         self.support = make_support(c.v_min, c.v_max, c.num_atoms, self.device)
@@ -171,6 +178,12 @@ class D4PGLearner:
                     torch._foreach_lerp_(dst, src, c.target_tau)
                 elif self.num_steps % c.target_update_period == 0:
                     torch._foreach_copy_(dst, src)
+            if self.policy_average is not None:
+                torch._foreach_lerp_(
+                    list(self.policy_average.parameters()),
+                    list(self.policy.parameters()),
+                    c.policy_average_tau,
+                )
 
     # --- priorities for actors ----------------------------------------------------------
     def compute_initial_priorities(self, batch: dict[str, np.ndarray]) -> np.ndarray:
@@ -190,17 +203,23 @@ class D4PGLearner:
     # --- weights & checkpoints ----------------------------------------------------------
     def get_weights(self) -> dict[str, np.ndarray]:
         """Online policy weights as CPU numpy arrays (cheap to put in Ray's object store)."""
-        return {k: v.detach().cpu().numpy().copy() for k, v in self.policy.state_dict().items()}
+        return _numpy_state(self.policy)
+
+    def get_eval_weights(self) -> dict[str, np.ndarray]:
+        """The policy to evaluate and ship: the Polyak average when kept, else the online one."""
+        return _numpy_state(self.policy_average or self.policy)
 
     def set_weights(self, weights: dict[str, np.ndarray]) -> None:
         self.policy.load_state_dict({k: torch.as_tensor(v) for k, v in weights.items()})
 
     def save(self, path: str | os.PathLike, include_replay: bool = False) -> None:
         """Write networks, targets, optimizers, counters to ``path`` (replay: + REPLAY_SUFFIX)."""
+        nets = ("policy", "critic", "target_policy", "target_critic", "policy_average")
         state = {
             "nets": {
                 name: getattr(self, name).state_dict()
-                for name in ("policy", "critic", "target_policy", "target_critic")
+                for name in nets
+                if getattr(self, name) is not None
             },
             "opts": {
                 "policy": self.policy_opt.state_dict(),
@@ -214,10 +233,19 @@ class D4PGLearner:
             np.savez(str(path) + REPLAY_SUFFIX, **self.replay.state_dict())
 
     def restore(self, path: str | os.PathLike) -> None:
-        """Load what :meth:`save` wrote; the replay too when its file exists."""
+        """Load what :meth:`save` wrote; the replay too when its file exists.
+
+        A checkpoint without a policy average (averaging was off) starts the average at the
+        restored online policy; one with an average restored by a learner that keeps none
+        drops it.
+        """
         state = torch.load(path, map_location=self.device, weights_only=True)
-        for name, sd in state["nets"].items():
-            getattr(self, name).load_state_dict(sd)
+        nets = state["nets"]
+        for name, sd in nets.items():
+            if getattr(self, name) is not None:
+                getattr(self, name).load_state_dict(sd)
+        if self.policy_average is not None and "policy_average" not in nets:
+            self.policy_average.load_state_dict(self.policy.state_dict())
         self.policy_opt.load_state_dict(state["opts"]["policy"])
         self.critic_opt.load_state_dict(state["opts"]["critic"])
         self.num_steps = int(state["num_steps"])

@@ -265,8 +265,12 @@ def test_snapshot_selection_keeps_a_best_policy_that_evaluate_reads(tmp_path: Pa
     from robogym_ray.export import load_policy
 
     summary = run_training(
-        pendulum(tmp_path, "sel", 1500, select_episodes=1), {"min_replay_size": 256}
+        pendulum(tmp_path, "sel", 1500, select_episodes=1),
+        {"min_replay_size": 256, "policy_average_tau": 0.05},
     )
+    # With policy averaging the run ships (and evaluate loads) the average.
+    final = load_policy(tmp_path / "sel" / "checkpoints" / "learner.pt")
+    assert final.info.source.endswith("learner.pt#policy_average")
     best = summary["best_snapshot"]
     assert best["snapshots_scored"] >= 1 and Path(best["path"]).name == "policy-best.pt"
     assert len(summary["eval_history"]) == best["snapshots_scored"]  # every evaluation scored

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import gymnasium as gym
@@ -91,6 +92,19 @@ def test_learner_service_pays_samples_per_insert_and_checkpoints(tmp_path: Path)
     w2, _ = restarted.get_weights()
     checkpointed = {k: np.allclose(weights[k], w2[k]) for k in weights}
     assert version == restarted.version or not all(checkpointed.values())
+
+
+def test_learner_service_hands_the_evaluator_the_policy_average() -> None:
+    worker = RolloutWorker(make_gym_env("Pendulum-v1"), SMALL, seed=0)
+    service = LearnerService(replace(SMALL, policy_average_tau=0.1), 3, 1)
+    for _ in range(3):
+        service.add(worker.collect(100).batch)
+    worker.close()
+    (online, version), (averaged, eval_version) = service.get_weights(), service.get_eval_weights()
+    assert version == eval_version > 0
+    expected = service.learner.policy_average.state_dict()["net.0.weight"].numpy()
+    np.testing.assert_array_equal(averaged["net.0.weight"], expected)
+    assert not np.allclose(online["net.0.weight"], averaged["net.0.weight"])
 
 
 def test_evaluator_reports_rates() -> None:

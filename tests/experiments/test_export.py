@@ -18,6 +18,8 @@ from robogym_ray.export import (
     load_policy,
     sidecar_path,
 )
+from robogym_ray.learner.config import D4PGConfig
+from robogym_ray.learner.learner import D4PGLearner
 from tests.experiments.conftest import POSITIONING, save_learner
 
 
@@ -67,3 +69,41 @@ def test_env_id_comes_from_the_run_directory(tmp_path, capsys) -> None:
     printed = json.loads(capsys.readouterr().out)
     assert printed["env_id"] == POSITIONING
     assert load_policy(run / "checkpoints" / "learner.pt").info.env_id == POSITIONING
+
+
+def test_a_run_with_a_policy_average_ships_the_average(tmp_path, capsys) -> None:
+    run = tmp_path / "run"
+    (run / "checkpoints").mkdir(parents=True)
+    (run / "config.json").write_text(json.dumps({"train": {"task": "positioning"}, "d4pg": {}}))
+    checkpoint = run / "checkpoints" / "learner.pt"
+    cfg = D4PGConfig(
+        policy_hidden=(32, 16),
+        critic_hidden=(32,),
+        replay_capacity=256,
+        batch_size=8,
+        policy_average_tau=0.01,
+    )
+    learner = D4PGLearner(cfg, 15, 6, seed=0)
+    with torch.no_grad():  # the online policy moves away from its average
+        learner.policy.net[0].weight.add_(0.5)
+    learner.save(checkpoint)
+    obs = torch.as_tensor(np.random.default_rng(1).normal(size=(8, 15)), dtype=torch.float32)
+    with torch.no_grad():
+        averaged, online = learner.policy_average(obs), learner.policy(obs)
+    assert not torch.allclose(averaged, online)
+
+    module, info = load_checkpoint_policy(checkpoint)
+    torch.testing.assert_close(module(obs), averaged, rtol=0, atol=0)
+    assert info.source == f"{checkpoint}#policy_average"
+    module, info = load_checkpoint_policy(checkpoint, online=True)
+    torch.testing.assert_close(module(obs), online, rtol=0, atol=0)
+    assert info.source == str(checkpoint)
+
+    for flags, expected in (([], averaged), (["--online-weights"], online)):
+        out = tmp_path / f"p{len(flags)}.pt"
+        assert cli_main(["export", str(checkpoint), str(out), *flags]) == 0
+        capsys.readouterr()
+        module, _ = load_exported(out)
+        torch.testing.assert_close(module(obs), expected, rtol=0, atol=1e-6)
+    with pytest.raises(ConfigError, match="exported policy"):
+        load_policy(tmp_path / "p0.pt", online=True)

@@ -146,3 +146,53 @@ def test_uniform_replay_and_beta_annealing() -> None:
 def test_config_validation_names_the_field() -> None:
     with pytest.raises(ConfigError, match="v_min"):
         D4PGConfig(v_min=1.0, v_max=0.0)
+
+
+def test_policy_average_follows_the_online_policy_by_tau() -> None:
+    learner = _learner(policy_average_tau=0.25)
+    assert _learner().policy_average is None  # off by default: nothing extra per step
+    avg = learner.policy_average
+    assert avg is not None and not any(p.requires_grad for p in avg.parameters())
+    start = avg.net[0].weight.clone()
+    learner.step()
+    moved = avg.net[0].weight - start
+    torch.testing.assert_close(moved, 0.25 * (learner.policy.net[0].weight - start))
+    for _ in range(3):
+        learner.step()
+    eval_weights, online = learner.get_eval_weights(), learner.get_weights()
+    assert eval_weights.keys() == online.keys()
+    assert not np.array_equal(eval_weights["net.0.weight"], online["net.0.weight"])
+    np.testing.assert_array_equal(eval_weights["net.0.weight"], avg.net[0].weight.numpy())
+    np.testing.assert_array_equal(
+        _learner().get_eval_weights()["net.0.weight"], _learner().get_weights()["net.0.weight"]
+    )
+
+
+def test_policy_average_survives_checkpoints_with_and_without_it(tmp_path: Path) -> None:
+    learner = _learner(policy_average_tau=0.25)
+    for _ in range(4):
+        learner.step()
+    learner.save(tmp_path / "avg.pt")
+    assert "policy_average" in torch.load(tmp_path / "avg.pt", weights_only=True)["nets"]
+    clone = D4PGLearner(_config(policy_average_tau=0.25), OBS, ACT, seed=3)
+    clone.restore(tmp_path / "avg.pt")
+    obs = torch.randn(5, OBS)
+    torch.testing.assert_close(clone.policy_average(obs), learner.policy_average(obs))
+    # Continuing with averaging from a run without it: the average starts at the policy.
+    plain = _learner()
+    plain.step()
+    plain.save(tmp_path / "plain.pt")
+    later = D4PGLearner(_config(policy_average_tau=0.25), OBS, ACT, seed=4)
+    later.restore(tmp_path / "plain.pt")
+    torch.testing.assert_close(later.policy_average(obs), plain.policy(obs), rtol=0, atol=0)
+    # And back: a learner without averaging ignores the stored average.
+    off = D4PGLearner(_config(), OBS, ACT, seed=5)
+    off.restore(tmp_path / "avg.pt")
+    assert off.policy_average is None
+    torch.testing.assert_close(off.policy(obs), learner.policy(obs), rtol=0, atol=0)
+
+
+@pytest.mark.parametrize("tau", [-0.1, 1.0, float("nan")])
+def test_policy_average_tau_is_validated(tau: float) -> None:
+    with pytest.raises(ConfigError, match="policy_average_tau"):
+        _config(policy_average_tau=tau)
