@@ -207,7 +207,7 @@ class D4PGLearner:
 
     def get_eval_weights(self) -> dict[str, np.ndarray]:
         """The policy to evaluate and ship: the Polyak average when kept, else the online one."""
-        return _numpy_state(self.policy_average or self.policy)
+        return _numpy_state(self.policy if self.policy_average is None else self.policy_average)
 
     def set_weights(self, weights: dict[str, np.ndarray]) -> None:
         self.policy.load_state_dict({k: torch.as_tensor(v) for k, v in weights.items()})
