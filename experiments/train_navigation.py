@@ -1,11 +1,12 @@
 """Problem 1 of the paper: MiR100 navigation with obstacle avoidance (D4PG).
 
-    python experiments/train_navigation.py           # full run: configs/navigation.json
+    python experiments/train_navigation.py           # full run: configs/navigation-average.json
     python experiments/train_navigation.py --total-steps 20000 --workers 2 --logdir runs/short
     python experiments/train_navigation.py --smoke   # CI plumbing check, ~1 min
 
-Hyperparameters: experiments/configs/navigation.json (the format `robogym-ray train --config`
-reads).
+Hyperparameters: experiments/configs/navigation-average.json (the format
+`robogym-ray train --config` reads): navigation.json plus policy averaging and a spaced
+evaluator, the recipe of the best results in docs/results.md.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from pathlib import Path
 
 from robogym_ray.reproduce import train_main
 
-CONFIG = Path(__file__).resolve().parent / "configs" / "navigation.json"
+CONFIG = Path(__file__).resolve().parent / "configs" / "navigation-average.json"
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -23,7 +23,16 @@ def script(name: str) -> ModuleType:
     return module
 
 
-@pytest.mark.parametrize("name", ["navigation", "positioning", "navigation-continue-dr"])
+@pytest.mark.parametrize(
+    "name",
+    [
+        "navigation",
+        "positioning",
+        "navigation-continue-dr",
+        "navigation-average",
+        "positioning-average",
+    ],
+)
 def test_configs_load_and_flags_override_them(name: str) -> None:
     config = EXPERIMENTS / "configs" / f"{name}.json"
     args = build_parser(config, "").parse_args(["--total-steps", "123", "--workers", "1"])
@@ -33,6 +42,7 @@ def test_configs_load_and_flags_override_them(name: str) -> None:
     assert (train.emulated_workers > 0) == ("dr" in name)
     assert emulation.latency_ticks >= 0
     assert d4pg["layer_norm"] is True
+    assert (d4pg.get("policy_average_tau", 0.0) > 0) == name.endswith("-average")
     from robogym_ray.actors.tasks import d4pg_for, resolve_task
 
     d4pg_for(resolve_task(train.task), d4pg)  # every key is a D4PGConfig field
