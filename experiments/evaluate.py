@@ -1,10 +1,10 @@
 """Final evaluation of a trained policy: the paper's success / collision / timeout table.
 
     # 100 episodes in simulation (env id from the run's config.json)
-    python experiments/evaluate.py runs/paper/positioning/checkpoints/learner.pt \
+    python experiments/evaluate.py runs/paper/positioning-average/checkpoints/learner.pt \
         --out results/pos-sim
     # on an emulated real robot started for the task (real-time pacing, latency, noise)
-    python experiments/evaluate.py runs/paper/navigation/checkpoints/learner.pt --emulate \
+    python experiments/evaluate.py runs/paper/navigation-average/checkpoints/learner.pt --emulate \
         --out results/nav-emulated
     # on a robot server that is already running (real robot or `robogym-ray serve ...`)
     python experiments/evaluate.py policy.pt --rs-address 10.0.0.5:50051 --out results/nav-real
