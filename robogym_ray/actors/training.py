@@ -324,6 +324,7 @@ class TrainingRun:
                 "loss/critic": s.learner.get("critic_loss", 0.0),
                 "loss/policy": s.learner.get("policy_loss", 0.0),
                 "learner/mean_q": s.learner.get("mean_q", 0.0),
+                "learner/lr_scale": s.learner.get("lr_scale", 1.0),
                 "learner/steps": learner_steps,
                 "weights/lag": learner_steps - min(w.weights_version for w in self.workers),
                 "faults/dropped_steps": float(s.dropped_steps),

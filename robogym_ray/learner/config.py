@@ -65,6 +65,14 @@ class D4PGConfig:
     every learner step); the evaluator scores it, checkpoints store it as ``nets.policy_average``
     and ``evaluate`` / ``export`` use it by default. The workers still act with the online
     policy. It damps the greedy policy's snapshot-to-snapshot swings (docs/results.md)."""
+    lr_decay_start: int = 0
+    """Learner step at which both learning rates start to decay (with ``lr_decay_steps > 0``)."""
+    lr_decay_steps: int = 0
+    """Learner steps over which both learning rates fall linearly from their base values to
+    ``lr_final_scale`` times them (held there afterwards); 0 keeps them constant. Counted in
+    learner steps, not wall time, so a schedule replays identically and survives a restore."""
+    lr_final_scale: float = 1.0
+    """Fraction of the base learning rates reached at the end of the decay, in (0, 1]."""
     samples_per_insert: float = 32.0
     """Replayed samples per inserted transition; batch_size / this = learner steps per insert."""
 
@@ -114,6 +122,9 @@ class D4PGConfig:
                 self.target_update_period,
                 ">= 1",
             ),
+            (self.lr_decay_start >= 0, "lr_decay_start", self.lr_decay_start, ">= 0"),
+            (self.lr_decay_steps >= 0, "lr_decay_steps", self.lr_decay_steps, ">= 0"),
+            (0.0 < self.lr_final_scale <= 1.0, "lr_final_scale", self.lr_final_scale, "in (0, 1]"),
             (self.samples_per_insert > 0, "samples_per_insert", self.samples_per_insert, "> 0"),
             (
                 self.replay_capacity >= self.batch_size,

@@ -98,6 +98,25 @@ class D4PGLearner:
         frac = min(1.0, self.num_steps / max(1, c.importance_beta_steps))
         return c.importance_beta_start + frac * (1.0 - c.importance_beta_start)
 
+    @property
+    def lr_scale(self) -> float:
+        """Factor on the base learning rates at the current step (the linear late decay)."""
+        c = self.config
+        if c.lr_decay_steps <= 0:
+            return 1.0
+        frac = min(1.0, max(0, self.num_steps - c.lr_decay_start) / c.lr_decay_steps)
+        return 1.0 - frac * (1.0 - c.lr_final_scale)
+
+    def _apply_lr(self) -> float:
+        scale = self.lr_scale
+        for opt, base in (
+            (self.policy_opt, self.config.policy_lr),
+            (self.critic_opt, self.config.critic_lr),
+        ):
+            for group in opt.param_groups:
+                group["lr"] = base * scale
+        return scale
+
     # --- learning -----------------------------------------------------------------------
     def _to_tensors(self, batch: dict[str, np.ndarray]) -> dict[str, torch.Tensor]:
         return {k: torch.as_tensor(v, device=self.device) for k, v in batch.items()}
@@ -117,6 +136,7 @@ class D4PGLearner:
         """
         c = self.config
         beta = self.beta
+        lr_scale = self._apply_lr()
         batch, idx, weights = self.replay.sample(c.batch_size, beta)
         b = self._to_tensors(batch)
         w = torch.as_tensor(weights, device=self.device)
@@ -158,6 +178,7 @@ class D4PGLearner:
             "critic_grad_norm": float(stats[2]),
             "policy_grad_norm": float(stats[3]),
             "beta": beta,
+            "lr_scale": lr_scale,
             "steps": float(self.num_steps),
         }
 

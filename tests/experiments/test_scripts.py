@@ -31,6 +31,7 @@ def script(name: str) -> ModuleType:
         "navigation-continue-dr",
         "navigation-average",
         "positioning-average",
+        "navigation-average-decay",
     ],
 )
 def test_configs_load_and_flags_override_them(name: str) -> None:
@@ -42,7 +43,8 @@ def test_configs_load_and_flags_override_them(name: str) -> None:
     assert (train.emulated_workers > 0) == ("dr" in name)
     assert emulation.latency_ticks >= 0
     assert d4pg["layer_norm"] is True
-    assert (d4pg.get("policy_average_tau", 0.0) > 0) == name.endswith("-average")
+    assert (d4pg.get("policy_average_tau", 0.0) > 0) == ("-average" in name)
+    assert (d4pg.get("lr_decay_steps", 0) > 0) == name.endswith("-decay")
     from robogym_ray.actors.tasks import d4pg_for, resolve_task
 
     d4pg_for(resolve_task(train.task), d4pg)  # every key is a D4PGConfig field

@@ -196,3 +196,38 @@ def test_policy_average_survives_checkpoints_with_and_without_it(tmp_path: Path)
 def test_policy_average_tau_is_validated(tau: float) -> None:
     with pytest.raises(ConfigError, match="policy_average_tau"):
         _config(policy_average_tau=tau)
+
+
+def test_learning_rates_decay_linearly_by_learner_step(tmp_path: Path) -> None:
+    cfg = dict(policy_lr=1e-3, critic_lr=2e-3, lr_decay_start=2, lr_decay_steps=4)
+    learner = _learner(**cfg, lr_final_scale=0.25)
+    scales = [learner.step()["lr_scale"] for _ in range(8)]
+    # step() applies the rate for the step it is about to take (num_steps 0..7 here).
+    assert scales == pytest.approx([1.0, 1.0, 1.0, 0.8125, 0.625, 0.4375, 0.25, 0.25])
+    assert learner.policy_opt.param_groups[0]["lr"] == pytest.approx(0.25e-3)
+    assert learner.critic_opt.param_groups[0]["lr"] == pytest.approx(0.5e-3)
+    # A restored learner picks the schedule up where the checkpoint left it, not at the start.
+    learner.save(tmp_path / "decayed.pt")
+    clone = D4PGLearner(_config(**cfg, lr_final_scale=0.25), OBS, ACT, seed=1)
+    clone.add(_data(200))
+    clone.restore(tmp_path / "decayed.pt")
+    assert clone.step()["lr_scale"] == pytest.approx(0.25)
+    # Off by default: the rates stay at their base values.
+    plain = _learner(policy_lr=1e-3)
+    assert {plain.step()["lr_scale"] for _ in range(3)} == {1.0}
+    assert plain.policy_opt.param_groups[0]["lr"] == 1e-3
+
+
+@pytest.mark.parametrize(
+    "field, value",
+    [
+        ("lr_final_scale", 0.0),
+        ("lr_final_scale", 1.5),
+        ("lr_final_scale", float("nan")),
+        ("lr_decay_steps", -1),
+        ("lr_decay_start", -5),
+    ],
+)
+def test_learning_rate_decay_is_validated(field: str, value: float) -> None:
+    with pytest.raises(ConfigError, match=field):
+        _config(**{field: value})
