@@ -47,6 +47,12 @@ def _numpy_state(net: nn.Module) -> dict[str, np.ndarray]:
     return {k: v.detach().cpu().numpy().copy() for k, v in net.state_dict().items()}
 
 
+def linear_ramp(step: int, start: int, length: int, begin: float, end: float) -> float:
+    """``begin`` until ``start``, then linearly to ``end`` over ``length`` steps, then ``end``."""
+    frac = min(1.0, max(0, step - start) / max(1, length))
+    return begin + frac * (end - begin)
+
+
 REPLAY_SUFFIX = ".replay.npz"
 """Appended to a checkpoint's path for the file holding its replay buffer."""
 
@@ -95,8 +101,7 @@ class D4PGLearner:
     @property
     def beta(self) -> float:
         c = self.config
-        frac = min(1.0, self.num_steps / max(1, c.importance_beta_steps))
-        return c.importance_beta_start + frac * (1.0 - c.importance_beta_start)
+        return linear_ramp(self.num_steps, 0, c.importance_beta_steps, c.importance_beta_start, 1)
 
     @property
     def lr_scale(self) -> float:
@@ -104,10 +109,11 @@ class D4PGLearner:
         c = self.config
         if c.lr_decay_steps <= 0:
             return 1.0
-        frac = min(1.0, max(0, self.num_steps - c.lr_decay_start) / c.lr_decay_steps)
-        return 1.0 - frac * (1.0 - c.lr_final_scale)
+        return linear_ramp(self.num_steps, c.lr_decay_start, c.lr_decay_steps, 1, c.lr_final_scale)
 
     def _apply_lr(self) -> float:
+        # Set on every step, decay or not: a restored optimizer state carries the rate it was
+        # saved with, which must not override this config's (another schedule, or none).
         scale = self.lr_scale
         for opt, base in (
             (self.policy_opt, self.config.policy_lr),

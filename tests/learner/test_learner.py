@@ -216,6 +216,11 @@ def test_learning_rates_decay_linearly_by_learner_step(tmp_path: Path) -> None:
     plain = _learner(policy_lr=1e-3)
     assert {plain.step()["lr_scale"] for _ in range(3)} == {1.0}
     assert plain.policy_opt.param_groups[0]["lr"] == 1e-3
+    # Even when restored from the decayed checkpoint, whose optimizer state holds 0.25e-3.
+    plain.restore(tmp_path / "decayed.pt")
+    assert plain.policy_opt.param_groups[0]["lr"] == pytest.approx(0.25e-3)
+    plain.step()
+    assert plain.policy_opt.param_groups[0]["lr"] == 1e-3
 
 
 @pytest.mark.parametrize(
