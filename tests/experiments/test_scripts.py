@@ -32,6 +32,7 @@ def script(name: str) -> ModuleType:
         "navigation-average",
         "positioning-average",
         "navigation-average-decay",
+        "navigation-average-256",
     ],
 )
 def test_configs_load_and_flags_override_them(name: str) -> None:
@@ -45,6 +46,7 @@ def test_configs_load_and_flags_override_them(name: str) -> None:
     assert d4pg["layer_norm"] is True
     assert (d4pg.get("policy_average_tau", 0.0) > 0) == ("-average" in name)
     assert (d4pg.get("lr_decay_steps", 0) > 0) == name.endswith("-decay")
+    assert (d4pg["critic_hidden"] == [256, 256]) == name.endswith("-256")
     from robogym_ray.actors.tasks import d4pg_for, resolve_task
 
     d4pg_for(resolve_task(train.task), d4pg)  # every key is a D4PGConfig field
