@@ -3,7 +3,8 @@
 ``experiments/train_navigation.py`` and ``experiments/train_positioning.py`` are one line each
 over ``train_main``; the hyperparameters live in ``experiments/configs/*.json`` (the format
 ``robogym-ray train --config`` reads: ``{"train": {...TrainConfig}, "d4pg": {...D4PGConfig},
-"emulation": {...EmulationConfig}}``, the last for ``emulated_workers``).
+"emulation": {...EmulationConfig}}``, the last for ``emulated_workers``; a variant names its
+base recipe with ``"extends"`` and holds only what it changes).
 ``--smoke`` shrinks everything (steps, networks, replay) for a CI run of about a minute; a smoke
 run checks the plumbing, not learning.
 """
@@ -15,8 +16,6 @@ import json
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
-
-from robogym_ray.errors import ConfigError
 
 SMOKE_TRAIN: dict[str, Any] = {
     "workers": 1, "total_steps": 300, "random_steps": 100, "steps_per_call": 50,
@@ -30,17 +29,6 @@ SMOKE_D4PG: dict[str, Any] = {
     "num_threads": 1,
 }  # fmt: skip
 """D4PGConfig overrides of ``--smoke``."""
-
-
-def read_experiment_config(path: str | Path) -> tuple[dict[str, Any], dict[str, Any]]:
-    """``(train, d4pg)`` dicts of an experiment config file."""
-    try:
-        data = json.loads(Path(path).read_text())
-    except (OSError, ValueError) as exc:
-        raise ConfigError(f"cannot read experiment config {path}: {exc}") from None
-    if not isinstance(data, dict) or set(data) - {"train", "d4pg"}:
-        raise ConfigError(f"{path}: expected a JSON object with keys 'train' and/or 'd4pg'")
-    return dict(data.get("train", {})), dict(data.get("d4pg", {}))
 
 
 def build_parser(default_config: Path, description: str) -> argparse.ArgumentParser:

@@ -97,3 +97,37 @@ def test_train_merges_emulation_from_config_file_and_flags(tmp_path: Path) -> No
     assert setup.train.emulated_workers == 1
     assert setup.emulation.laser_noise_sigma == 0.05 and setup.emulation.latency_ticks == 0
     assert setup.emulation.velocity_scale == 0.95  # the rest: EmulationConfig's defaults
+
+
+def test_a_config_extends_another_field_by_field(tmp_path: Path) -> None:
+    from robogym_ray.actors.train_cmd import read_sections
+    from robogym_ray.errors import ConfigError
+
+    (tmp_path / "base.json").write_text(
+        json.dumps({"train": {"workers": 2, "seed": 3}, "d4pg": {"sigma": 0.3, "n_step": 5}})
+    )
+    (tmp_path / "variants").mkdir()
+    mid = tmp_path / "variants" / "mid.json"
+    mid.write_text(json.dumps({"extends": "../base.json", "train": {"seed": 4}}))
+    leaf = tmp_path / "variants" / "leaf.json"
+    leaf.write_text(json.dumps({"extends": "mid.json", "d4pg": {"sigma": 0.2}, "emulation": {}}))
+    sections = read_sections(leaf)
+    assert sections["train"] == {"workers": 2, "seed": 4}
+    assert sections["d4pg"] == {"sigma": 0.2, "n_step": 5}
+    assert read_sections(tmp_path / "base.json")["d4pg"]["sigma"] == 0.3  # base untouched
+
+    (tmp_path / "a.json").write_text(json.dumps({"extends": "b.json"}))
+    (tmp_path / "b.json").write_text(json.dumps({"extends": "a.json"}))
+    with pytest.raises(ConfigError, match="cycle"):
+        read_sections(tmp_path / "a.json")
+    leaf.write_text(json.dumps({"extends": "nowhere.json"}))
+    with pytest.raises(ConfigError, match=r"leaf.json extends nowhere.json: cannot read"):
+        read_sections(leaf)
+    leaf.write_text(json.dumps({"extends": ["mid.json"]}))
+    with pytest.raises(ConfigError, match="'extends' must be a config file name"):
+        read_sections(leaf)
+    mid.write_text(json.dumps({"extends": "../base.json", "train": {"workerz": 1}}))
+    leaf.write_text(json.dumps({"extends": "mid.json"}))
+    out = run_cli("train", "--config", str(leaf))  # a bad field in a base fails before Ray
+    assert out.returncode == 2 and "workerz" in out.stderr
+    assert "Started a local Ray" not in out.stderr

@@ -40,18 +40,38 @@ def _given(args: argparse.Namespace, cls: type) -> dict[str, Any]:
     return {k: tuple(v) if isinstance(v, list) else v for k, v in given.items()}
 
 
-def read_sections(path: str | Path) -> dict[str, dict[str, Any]]:
-    """The sections of a config file ({"train": {...}, "d4pg": {...}, "emulation": {...}})."""
+def read_sections(path: str | Path, _chain: tuple[Path, ...] = ()) -> dict[str, dict[str, Any]]:
+    """The sections of a config file ({"train": {...}, "d4pg": {...}, "emulation": {...}}).
+
+    A file may name another with ``"extends": "base.json"`` (a path relative to the file): it
+    starts from the base's sections and overrides them field by field, so a variant of a recipe
+    holds only what it changes and the two cannot drift apart unnoticed.
+    """
+    path = Path(path)
+    if path.resolve() in _chain:
+        cycle = " -> ".join(str(p) for p in (*_chain, path.resolve()))
+        raise ConfigError(f"{path}: 'extends' forms a cycle: {cycle}")
     try:
-        data = json.loads(Path(path).read_text())
+        data = json.loads(path.read_text())
     except (OSError, ValueError) as exc:
         raise ConfigError(f"cannot read config file {path}: {exc}") from None
-    if not isinstance(data, dict) or set(data) - set(SECTIONS):
-        raise ConfigError(f"{path}: expected a JSON object with keys among {', '.join(SECTIONS)}")
+    if not isinstance(data, dict) or set(data) - {*SECTIONS, "extends"}:
+        raise ConfigError(
+            f"{path}: expected a JSON object with keys among {', '.join(SECTIONS)} and 'extends'"
+        )
     for name, section in data.items():
-        if not isinstance(section, dict):
+        if name != "extends" and not isinstance(section, dict):
             raise ConfigError(f"{path}: section {name!r} must be a JSON object")
-    return {name: dict(data.get(name, {})) for name in SECTIONS}
+    base: dict[str, dict[str, Any]] = {name: {} for name in SECTIONS}
+    if "extends" in data:
+        parent = data["extends"]
+        if not isinstance(parent, str) or not parent:
+            raise ConfigError(f"{path}: 'extends' must be a config file name, got {parent!r}")
+        try:
+            base = read_sections(path.parent / parent, (*_chain, path.resolve()))
+        except ConfigError as exc:
+            raise ConfigError(f"{path} extends {parent}: {exc}") from None
+    return {name: {**base[name], **data.get(name, {})} for name in SECTIONS}
 
 
 def build_config(args: argparse.Namespace) -> TrainSetup:

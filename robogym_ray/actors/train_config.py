@@ -37,7 +37,8 @@ class TrainConfig:
     address: str | None = None
     """Ray address: None starts a local Ray (embedded); 'auto' joins a running cluster."""
     config: str | None = None
-    """JSON file {"train": {...}, "d4pg": {...}}; command-line flags win over its train part."""
+    """JSON file {"train": {...}, "d4pg": {...}, "emulation": {...}}, optionally "extends":
+    "base.json" (its fields override the base's); command-line flags win over its train part."""
     num_cpus: float | None = None
     """CPUs of the embedded local Ray (default: all of this machine)."""
     steps_per_call: int = 50
