@@ -8,10 +8,13 @@ each. Variants:
 * ``no-eval``: rollout workers and learner only;
 * ``eval``: plus the evaluator (one greedy episode per call, the default);
 * ``select``: the evaluator scoring each snapshot on ``--select-episodes`` episodes;
-* ``emulated``: no evaluator, worker 0 on an emulated robot (``--emulated-workers 1``).
+* ``emulated``: no evaluator, worker 0 on an emulated robot (``--emulated-workers 1``);
+* ``eval-256``: ``eval`` with (256, 256) policy and critic nets instead of the config's.
 
 Start from a trained run (``--init-from RUN/checkpoints/learner.pt``, with its replay beside
-it) so the learner trains from the first second, as in the middle of a real run.
+it) so the learner trains from the first second, as in the middle of a real run. A checkpoint
+fits one net size only, so ``eval-256`` runs from scratch: compare it with ``eval`` run from
+scratch too (no ``--init-from``).
 
 Usage: python benchmarks/training_overhead.py --config experiments/configs/navigation.json \
     --init-from /tmp/paper/navigation-dr/checkpoints/learner.pt [--wall-s 120] [--repeats 1]
@@ -36,7 +39,13 @@ VARIANTS: dict[str, dict[str, Any]] = {
     "eval": {"evaluator": True},
     "select": {"evaluator": True, "select_episodes": -1},  # -1: replaced by --select-episodes
     "emulated": {"evaluator": False, "emulated_workers": 1},
+    "eval-256": {"evaluator": True},
 }
+"""TrainConfig changes of each variant."""
+D4PG_CHANGES: dict[str, dict[str, Any]] = {
+    "eval-256": {"policy_hidden": [256, 256], "critic_hidden": [256, 256]},
+}
+"""D4PGConfig changes of the variants that have them."""
 
 
 def main() -> None:
@@ -48,6 +57,8 @@ def main() -> None:
     parser.add_argument("--select-episodes", type=int, default=100)
     parser.add_argument("--variants", nargs="+", default=list(VARIANTS), choices=list(VARIANTS))
     args = parser.parse_args()
+    if args.init_from and set(args.variants) & set(D4PG_CHANGES):
+        parser.error(f"--init-from fits one net size; run {sorted(D4PG_CHANGES)} without it")
     os.environ.setdefault("RAY_AUTH_MODE", "disabled")
     sections = read_sections(args.config)
     logdir = tempfile.mkdtemp(prefix="overhead-")
@@ -74,7 +85,7 @@ def main() -> None:
             if change.get("select_episodes") == -1:
                 change["select_episodes"] = args.select_episodes
             cfg = replace(base, run_name=f"{name}-{repeat}", **change)
-            summary = run_training(cfg, sections["d4pg"])
+            summary = run_training(cfg, {**sections["d4pg"], **D4PG_CHANGES.get(name, {})})
             row = {
                 "variant": name,
                 "repeat": repeat,
