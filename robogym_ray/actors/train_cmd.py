@@ -48,9 +48,9 @@ def read_sections(path: str | Path, _chain: tuple[Path, ...] = ()) -> dict[str, 
     holds only what it changes and the two cannot drift apart unnoticed.
     """
     path = Path(path)
-    if path.resolve() in _chain:
-        cycle = " -> ".join(str(p) for p in (*_chain, path.resolve()))
-        raise ConfigError(f"{path}: 'extends' forms a cycle: {cycle}")
+    chain = (*_chain, path.resolve())
+    if chain[-1] in _chain:
+        raise ConfigError(f"{path}: 'extends' forms a cycle: {' -> '.join(map(str, chain))}")
     try:
         data = json.loads(path.read_text())
     except (OSError, ValueError) as exc:
@@ -68,7 +68,7 @@ def read_sections(path: str | Path, _chain: tuple[Path, ...] = ()) -> dict[str, 
         if not isinstance(parent, str) or not parent:
             raise ConfigError(f"{path}: 'extends' must be a config file name, got {parent!r}")
         try:
-            base = read_sections(path.parent / parent, (*_chain, path.resolve()))
+            base = read_sections(path.parent / parent, chain)
         except ConfigError as exc:
             raise ConfigError(f"{path} extends {parent}: {exc}") from None
     return {name: {**base[name], **data.get(name, {})} for name in SECTIONS}
