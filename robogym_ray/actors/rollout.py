@@ -10,6 +10,7 @@ transition in replay ever spans a crash.
 from __future__ import annotations
 
 import logging
+import math
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -95,11 +96,12 @@ class RolloutWorker:
         obs_dim, act_dim = box_dims(self.env)
         self.low = self.env.action_space.low.astype(np.float64)
         self.high = self.env.action_space.high.astype(np.float64)
+        self.sigma = d4pg.sigma if sigma is None else sigma
         self.actor = PolicyActor(
             obs_dim,
             act_dim,
             d4pg.policy_hidden,
-            d4pg.sigma if sigma is None else sigma,
+            self.sigma,
             d4pg.layer_norm,
             seed=seed,
         )
@@ -121,8 +123,12 @@ class RolloutWorker:
             return self.rng.uniform(-1.0, 1.0, self.actor.act_dim).astype(np.float32)
         return self.actor.act(np.asarray(self.obs, dtype=np.float32), explore=True)
 
-    def collect(self, num_steps: int) -> RolloutResult:
-        """Run ``num_steps`` env steps; return completed transitions and finished episodes."""
+    def collect(self, num_steps: int, noise_scale: float = 1.0) -> RolloutResult:
+        """Run ``num_steps`` env steps with ``noise_scale`` times this worker's sigma; return
+        completed transitions and finished episodes."""
+        if not (math.isfinite(noise_scale) and noise_scale >= 0):
+            raise ValueError(f"worker {self.index}: noise_scale {noise_scale!r}; expected >= 0")
+        self.actor.sigma = self.sigma * noise_scale
         start = time.perf_counter()
         out: list[Transition] = []
         result = RolloutResult(batch=None, worker=self.index, weights_version=self.weights_version)

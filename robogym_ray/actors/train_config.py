@@ -49,6 +49,15 @@ class TrainConfig:
     """Each worker's first env steps use uniform random actions."""
     sigma_min: float = 0.1
     """Exploration noise of the last worker; worker sigmas spread from d4pg.sigma down to it."""
+    sigma_decay_start: int = 0
+    """Env steps (all workers together) after which every worker's exploration noise starts to
+    shrink, when sigma_decay_steps > 0."""
+    sigma_decay_steps: int = 0
+    """Env steps over which each worker's sigma falls linearly to sigma_final_scale times its
+    start (the spread between workers is kept); 0 = constant noise. Late in a run the replay
+    then holds more of the states the greedy policy visits."""
+    sigma_final_scale: float = 1.0
+    """Fraction of each worker's sigma left once the decay is over, in [0, 1]."""
     checkpoint_every: int = 500
     """Learner steps between checkpoints (a restarted learner resumes from the latest)."""
     init_from: str | None = None
@@ -113,6 +122,9 @@ class TrainConfig:
             (self.evaluator or not self.select_episodes, "select_episodes", "0 without evaluator"),
             (self.weight_sync_steps >= 1, "weight_sync_steps", ">= 1"),
             (self.sigma_min >= 0, "sigma_min", ">= 0"),
+            (self.sigma_decay_start >= 0, "sigma_decay_start", ">= 0"),
+            (self.sigma_decay_steps >= 0, "sigma_decay_steps", ">= 0"),
+            (0.0 <= self.sigma_final_scale <= 1.0, "sigma_final_scale", "in [0, 1]"),
             (self.worker_cpus > 0 and self.learner_cpus > 0, "worker_cpus/learner_cpus", "> 0"),
         ]
         for ok, name, expected in checks:

@@ -191,7 +191,7 @@ class TrainingRun:
 
         cfg = self.cfg
         logger = RunLogger(self.run_dir, total=cfg.total_steps, progress=cfg.progress)
-        pending = {slot.handle.collect.remote(cfg.steps_per_call): slot for slot in self.workers}
+        pending = {self._collect(slot): slot for slot in self.workers}
         learner_calls: deque[Any] = deque()
         self.started = start = time.perf_counter()
         eval_ref = self._start_eval()
@@ -214,13 +214,17 @@ class TrainingRun:
                 cfg.max_wall_s is not None and time.perf_counter() - start > cfg.max_wall_s
             )
             if self.stats.env_steps + in_flight < cfg.total_steps and not out_of_time:
-                pending[slot.handle.collect.remote(cfg.steps_per_call)] = slot
+                pending[self._collect(slot)] = slot
             eval_ref = self._poll_eval(eval_ref)
             if logger.due(cfg.log_every_s):  # scalars cost a supervisor round trip
                 logger.write(self._scalars(start), self.stats.env_steps)
         self._drain_learner(learner_calls, block=True, all_=True)
         summary = self._finish(start, logger)
         return summary
+
+    def _collect(self, slot: WorkerSlot) -> Any:
+        scale = setup.noise_scale(self.cfg, self.stats.env_steps)
+        return slot.handle.collect.remote(self.cfg.steps_per_call, scale)
 
     def _record(self, result: RolloutResult, logger: Any) -> None:
         s = self.stats
@@ -325,6 +329,7 @@ class TrainingRun:
                 "loss/policy": s.learner.get("policy_loss", 0.0),
                 "learner/mean_q": s.learner.get("mean_q", 0.0),
                 "learner/lr_scale": s.learner.get("lr_scale", 1.0),
+                "explore/noise_scale": setup.noise_scale(self.cfg, s.env_steps),
                 "learner/steps": learner_steps,
                 "weights/lag": learner_steps - min(w.weights_version for w in self.workers),
                 "faults/dropped_steps": float(s.dropped_steps),

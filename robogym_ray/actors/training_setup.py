@@ -21,7 +21,7 @@ from robogym_ray.actors.supervisor import SupervisorConfig
 from robogym_ray.actors.train_config import TrainConfig
 from robogym_ray.errors import ConfigError
 from robogym_ray.learner.config import D4PGConfig
-from robogym_ray.learner.learner import REPLAY_SUFFIX
+from robogym_ray.learner.learner import REPLAY_SUFFIX, linear_ramp
 from robogym_ray.learner.networks import DistributionalCritic, Policy
 from robogym_ray.robots.emulation import EmulationConfig
 
@@ -44,6 +44,15 @@ def worker_sigmas(d4pg: D4PGConfig, cfg: TrainConfig, n: int) -> list[float]:
     if n <= 1:
         return [d4pg.sigma] * n
     return list(np.linspace(d4pg.sigma, min(cfg.sigma_min, d4pg.sigma), n))
+
+
+def noise_scale(cfg: TrainConfig, env_steps: int) -> float:
+    """Factor on every worker's sigma after ``env_steps`` (the linear late decay)."""
+    if cfg.sigma_decay_steps <= 0:
+        return 1.0
+    return linear_ramp(
+        env_steps, cfg.sigma_decay_start, cfg.sigma_decay_steps, 1.0, cfg.sigma_final_scale
+    )
 
 
 def real_env_id(env_id: str) -> str:

@@ -13,7 +13,8 @@ import pytest
 from robogym_ray.actors.evaluator import Evaluator, status_rates
 from robogym_ray.actors.learner_service import LearnerService
 from robogym_ray.actors.rollout import SERVER_RESTARTED, RolloutWorker, box_dims, make_gym_env
-from robogym_ray.actors.training_setup import seed_checkpoint
+from robogym_ray.actors.train_config import TrainConfig
+from robogym_ray.actors.training_setup import noise_scale, seed_checkpoint
 from robogym_ray.envs.client import Deadlines
 from robogym_ray.errors import ConfigError
 from robogym_ray.learner.config import D4PGConfig
@@ -61,6 +62,39 @@ class _CrashingEnv(gym.Wrapper):
         if self.t == 7:
             return obs, r, False, True, {"final_status": SERVER_RESTARTED}
         return obs, r, term, trunc, info
+
+
+def test_noise_scale_shrinks_the_workers_exploration() -> None:
+    worker = RolloutWorker(make_gym_env("Pendulum-v1"), SMALL, sigma=0.4, seed=2)
+    weights = {k: v.numpy() for k, v in worker.actor.policy.state_dict().items()}
+    worker.set_weights(weights, 0)
+
+    def policy_gap(batch: dict[str, np.ndarray]) -> float:
+        # The first n_step - 1 windows began in the previous call, under its noise.
+        obs, action = batch["obs"][SMALL.n_step - 1 :], batch["action"][SMALL.n_step - 1 :]
+        greedy = np.stack([worker.actor.act(o, explore=False) for o in obs])
+        return float(np.abs(action - greedy).max())
+
+    noisy = worker.collect(60).batch
+    assert noisy is not None and policy_gap(noisy) > 0.1 and worker.actor.sigma == 0.4
+    quiet = worker.collect(60, noise_scale=0.0).batch
+    assert quiet is not None and policy_gap(quiet) < 1e-6  # no noise left: the greedy action
+    worker.collect(5, noise_scale=0.25)
+    assert worker.actor.sigma == pytest.approx(0.1) and worker.sigma == 0.4  # base kept
+    for bad in (-0.5, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="noise_scale"):
+            worker.collect(5, noise_scale=bad)
+    assert worker.total_steps == 125  # the refused calls took no step
+
+
+def test_noise_schedule_decays_linearly_over_env_steps() -> None:
+    cfg = TrainConfig(sigma_decay_start=1000, sigma_decay_steps=500, sigma_final_scale=0.2)
+    scales = [noise_scale(cfg, n) for n in (0, 1000, 1250, 1500, 10**6)]
+    assert scales == pytest.approx([1.0, 1.0, 0.6, 0.2, 0.2])
+    assert noise_scale(TrainConfig(sigma_final_scale=0.2), 10**6) == 1.0  # no decay steps
+    for bad in ({"sigma_final_scale": 1.5}, {"sigma_decay_steps": -1}):
+        with pytest.raises(ConfigError, match=next(iter(bad))):
+            TrainConfig(**bad)
 
 
 def test_server_restart_drops_the_unfinished_window() -> None:

@@ -33,6 +33,7 @@ def script(name: str) -> ModuleType:
         "positioning-average",
         "navigation-average-decay",
         "navigation-average-256",
+        "navigation-average-256-quiet",
     ],
 )
 def test_configs_load_and_flags_override_them(name: str) -> None:
@@ -46,7 +47,8 @@ def test_configs_load_and_flags_override_them(name: str) -> None:
     assert d4pg["layer_norm"] is True
     assert (d4pg.get("policy_average_tau", 0.0) > 0) == ("-average" in name)
     assert (d4pg.get("lr_decay_steps", 0) > 0) == name.endswith("-decay")
-    assert (d4pg["critic_hidden"] == [256, 256]) == name.endswith("-256")
+    assert (d4pg["critic_hidden"] == [256, 256]) == ("-256" in name)
+    assert (train.sigma_final_scale < 1 and train.sigma_decay_steps > 0) == name.endswith("-quiet")
     from robogym_ray.actors.tasks import d4pg_for, resolve_task
 
     d4pg_for(resolve_task(train.task), d4pg)  # every key is a D4PGConfig field
