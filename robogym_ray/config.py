@@ -11,12 +11,10 @@ import argparse
 import ast
 import dataclasses
 import inspect
-import json
 import textwrap
 import typing
 from collections.abc import Mapping
 from functools import cache
-from pathlib import Path
 from typing import Any, TypeVar
 
 from robogym_ray.errors import ConfigError
@@ -112,17 +110,6 @@ def config_from_args(cls: type[T], args: argparse.Namespace) -> T:
     return cls(**values)
 
 
-def load_config_file(cls: type[T], path: str | Path, overrides: Mapping[str, Any] = ()) -> T:  # type: ignore[assignment]
-    """Read a JSON config file into ``cls``; unknown keys are an error that names them."""
-    try:
-        data = json.loads(Path(path).read_text())
-    except (OSError, json.JSONDecodeError) as exc:
-        raise ConfigError(f"cannot read config file {path}: {exc}") from None
-    if not isinstance(data, dict):
-        raise ConfigError(f"config file {path} must hold a JSON object, got {type(data).__name__}")
-    return merge_config(cls, {**data, **dict(overrides)}, source=str(path))
-
-
 def merge_config(cls: type[T], values: Mapping[str, Any], source: str = "config") -> T:
     """``cls(**values)`` with clear errors for unknown fields and bad values."""
     known = {f.name for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
@@ -135,3 +122,10 @@ def merge_config(cls: type[T], values: Mapping[str, Any], source: str = "config"
         return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in values.items()})
     except (TypeError, ValueError) as exc:
         raise ConfigError(f"{source}: invalid {cls.__name__}: {exc}") from None
+
+
+def check_port(port: object, what: str) -> None:
+    """ConfigError unless ``port`` is a TCP port number (0 = a free one). gRPC would not
+    refuse one out of range: it binds ``port % 65536`` (``-1`` listens on 65535)."""
+    if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= 65535:
+        raise ConfigError(f"{what} = {port!r}; expected a TCP port in [0, 65535] (0 = a free one)")

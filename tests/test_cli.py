@@ -56,6 +56,8 @@ def test_train_rejects_a_malformed_config(tmp_path: Path) -> None:
     assert out.returncode == 2 and "workers" in out.stderr
     out = run_cli("train", "--real-robot", "nohostport")
     assert out.returncode == 2 and "HOST:PORT" in out.stderr
+    out = run_cli("serve", "--port", "-1")  # gRPC alone would listen on 65535
+    assert out.returncode == 2 and "--port" in out.stderr and "listening" not in out.stdout
 
 
 def test_train_rejects_bad_emulation_settings_before_starting_ray(tmp_path: Path) -> None:

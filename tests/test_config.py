@@ -8,9 +8,13 @@ from pathlib import Path
 
 import pytest
 
-from robogym_ray.config import add_config_args, config_from_args, load_config_file, merge_config
+from robogym_ray.actors.manager import ManagerConfig
+from robogym_ray.actors.train_cmd import read_sections
+from robogym_ray.actors.train_config import TrainConfig
+from robogym_ray.config import add_config_args, config_from_args, merge_config
 from robogym_ray.errors import ConfigError
 from robogym_ray.robots.serve import ServeConfig, is_loopback, parse_options
+from robogym_ray.robots.server import start_robot_server
 
 
 def test_field_docstrings_become_help() -> None:
@@ -30,18 +34,40 @@ def test_field_docstrings_become_help() -> None:
 
 def test_config_file_unknown_key_and_bad_json(tmp_path: Path) -> None:
     good = tmp_path / "good.json"
-    good.write_text(json.dumps({"robot": "ur10", "port": 5}))
-    assert load_config_file(ServeConfig, good).robot == "ur10"
+    good.write_text(json.dumps({"train": {"workers": 3}}))
+    assert merge_config(TrainConfig, read_sections(good)["train"]).workers == 3
     bad = tmp_path / "bad.json"
-    bad.write_text(json.dumps({"robto": "ur10"}))
-    with pytest.raises(ConfigError, match="robto"):
-        load_config_file(ServeConfig, bad)
+    bad.write_text(json.dumps({"train": {"wrokers": 3}}))
+    with pytest.raises(ConfigError, match="wrokers"):
+        merge_config(TrainConfig, read_sections(bad)["train"], source=str(bad))
     broken = tmp_path / "broken.json"
     broken.write_text("{not json")
     with pytest.raises(ConfigError, match="broken.json"):
-        load_config_file(ServeConfig, broken)
+        read_sections(broken)
     with pytest.raises(ConfigError, match="unknown"):
         merge_config(ServeConfig, {"nope": 1})
+    with pytest.raises(ConfigError, match="invalid ServeConfig"):
+        merge_config(ServeConfig, {"port": -1})
+
+
+@pytest.mark.parametrize("port", [-1, 65536, 70000, 1.5, True])
+def test_ports_out_of_range_are_refused_not_wrapped(port: object) -> None:
+    # gRPC binds port % 65536 without a word: -1 would listen on 65535.
+    with pytest.raises(ConfigError, match="TCP port"):
+        ServeConfig(port=port)  # type: ignore[arg-type]
+    with pytest.raises(ConfigError, match="TCP port"):
+        ManagerConfig(port=port)  # type: ignore[arg-type]
+    with pytest.raises(ConfigError, match="robot server port"):
+        start_robot_server("ur10", port=port)  # type: ignore[arg-type]
+    with pytest.raises(ConfigError, match="HOST:PORT"):
+        TrainConfig(real_robot=(f"10.0.0.5:{port}",))
+
+
+def test_manager_settings_are_checked() -> None:
+    assert ManagerConfig(port=0).port == 0
+    for bad in ({"num_cpus": 0}, {"probe_interval_s": float("nan")}, {"max_restarts": -1}):
+        with pytest.raises(ConfigError, match=next(iter(bad))):
+            ManagerConfig(**bad)
 
 
 def test_launch_style_options() -> None:

@@ -13,7 +13,7 @@ import signal
 import threading
 from dataclasses import dataclass
 
-from robogym_ray.config import add_config_args, config_from_args
+from robogym_ray.config import add_config_args, check_port, config_from_args
 from robogym_ray.errors import ConfigError
 
 log = logging.getLogger(__name__)
@@ -36,6 +36,16 @@ class ManagerConfig:
     """Seconds between health probes of each robot server."""
     max_restarts: int = 5
     """Automatic restarts of one server within 5 minutes before it is given up."""
+
+    def __post_init__(self) -> None:
+        check_port(self.port, "ManagerConfig.port (--port)")
+        for name, ok in (
+            ("num_cpus", self.num_cpus > 0),
+            ("probe_interval_s", self.probe_interval_s > 0),
+            ("max_restarts", self.max_restarts >= 0),
+        ):
+            if not ok:  # NaN fails these comparisons too
+                raise ConfigError(f"ManagerConfig.{name} = {getattr(self, name)!r}; out of range")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -134,5 +134,5 @@ class TrainConfig:
                 )
         for address in self.real_robot:
             host, sep, port = address.rpartition(":")
-            if not sep or not host or not port.isdigit():
-                raise ConfigError(f"--real-robot {address!r} is not HOST:PORT")
+            if not sep or not host or not port.isdigit() or not 0 < int(port) <= 65535:
+                raise ConfigError(f"--real-robot {address!r} is not HOST:PORT (port 1-65535)")

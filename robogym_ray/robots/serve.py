@@ -14,7 +14,7 @@ import threading
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 
-from robogym_ray.config import add_config_args, config_from_args
+from robogym_ray.config import add_config_args, check_port, config_from_args
 from robogym_ray.errors import ConfigError
 from robogym_ray.robots.emulation import EmulationConfig
 from robogym_ray.robots.registry import ROBOTS
@@ -45,6 +45,9 @@ class ServeConfig:
     """Shared token clients must send as gRPC metadata 'robogym-token' (or ROBOGYM_RAY_TOKEN)."""
     option: tuple[str, ...] = ()
     """Robot options as robo-gym launch arguments, e.g. rs_mode=1object action_cycle_rate=10."""
+
+    def __post_init__(self) -> None:
+        check_port(self.port, "ServeConfig.port (--port)")
 
 
 def parse_options(pairs: tuple[str, ...] | list[str]) -> dict[str, str]:

@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING
 import grpc
 import numpy as np
 
+from robogym_ray.config import check_port
 from robogym_ray.errors import InvalidActionError, RoboGymRayError
 from robogym_ray.protocol import robot_server_pb2 as pb
 from robogym_ray.protocol import robot_server_pb2_grpc as pb_grpc
@@ -278,6 +279,7 @@ def start_robot_server(
     ``emulation`` serves an emulated real robot (latency, noise, dynamics differences; see
     ``robots.emulation``) instead of the plain simulation.
     """
+    check_port(port, "robot server port")  # before the robot is built: nothing to undo
     sim_robot: SimRobot = make_robot(robot, scene=scene, seed=seed, options=options)
     if emulation is not None:
         from robogym_ray.robots.emulation import emulate
