@@ -11,6 +11,7 @@ simulations are unaffected. Every action passes a ``SafetyFilter`` (see ``actors
 from __future__ import annotations
 
 import logging
+import math
 import threading
 import time
 from collections.abc import Mapping, Sequence
@@ -49,6 +50,9 @@ class RealRobot:
         deadlines: per-RPC deadlines (robo-gym's by default: real robots are slow).
         token: shared token for the server, if it wants one.
         check: probe the server once now (raises RobotServerError if it does not answer).
+        probe_interval_s: when > 0, a background probe (GetState) runs whenever the robot has
+            gone this long without a command, so a server that dies while nobody commands it
+            pauses the robot then, not at the next command; 0 = probe only on request.
     """
 
     def __init__(
@@ -59,7 +63,10 @@ class RealRobot:
         deadlines: Deadlines | None = None,
         token: str | None = None,
         check: bool = True,
+        probe_interval_s: float = 0.0,
     ) -> None:
+        if not (math.isfinite(probe_interval_s) and probe_interval_s >= 0):
+            raise ValueError(f"probe_interval_s = {probe_interval_s!r}; expected >= 0")
         self.name = name
         self.address = address
         self.safety = SafetyFilter(safety)
@@ -69,8 +76,15 @@ class RealRobot:
         self.paused_at = 0.0
         self.pauses = 0
         self._lock = threading.Lock()  # one command at a time, as on the pendant
+        self.idle_probes = 0
+        self._last_answer = time.monotonic()
+        self._closed = threading.Event()
         if check:
             self.client.get_state()
+        if probe_interval_s > 0:
+            threading.Thread(
+                target=self._watch, args=(probe_interval_s,), name=f"probe-{name}", daemon=True
+            ).start()
 
     # -- commands (refused while paused) -----------------------------------------------------
     # Plain lists/dicts in and out: protobuf messages do not pickle across Ray.
@@ -139,6 +153,7 @@ class RealRobot:
                             cause="paused",
                         ) from None
                     time.sleep(0.2)
+            self._last_answer = time.monotonic()
             self.paused, self.pause_reason = False, ""
             self.safety.reset()
         log.warning("real robot %s resumed by operator", self.name)
@@ -154,9 +169,12 @@ class RealRobot:
             "pauses": self.pauses,
             "clipped": self.safety.clipped,
             "refused": self.safety.refused,
+            "idle_probes": self.idle_probes,
+            "last_answer_s_ago": round(time.monotonic() - self._last_answer, 3),
         }
 
     def close(self) -> None:
+        self._closed.set()
         self.client.close()
 
     # -- internals -----------------------------------------------------------------------------
@@ -170,10 +188,20 @@ class RealRobot:
                     cause="paused",
                 )
             try:
-                return call(*args)
+                reply = call(*args)
             except RobotServerError as exc:
                 self._pause(f"{rpc} failed: {exc}")
                 raise
+            self._last_answer = time.monotonic()
+            return reply
+
+    def _watch(self, interval_s: float) -> None:
+        # A paused robot is left alone: only an operator's resume may probe it back to life.
+        while not self._closed.wait(interval_s / 2):
+            if not self.paused and time.monotonic() - self._last_answer >= interval_s:
+                self.idle_probes += 1
+                if not self.check():
+                    log.error("real robot %s failed its idle probe", self.name)
 
     def _pause(self, reason: str) -> None:
         # No lock: an emergency stop must not wait for a command in flight to time out.

@@ -127,11 +127,16 @@ RealRobotActor = ray.remote(num_cpus=0.05, max_restarts=0, max_concurrency=4)(Re
 
 
 def start_real_robot(
-    name: str, address: str, safety: SafetyConfig, token: str | None = None
+    name: str,
+    address: str,
+    safety: SafetyConfig,
+    token: str | None = None,
+    probe_interval_s: float = 2.0,
 ) -> Any:
-    """Join the real robot at ``address`` as the named actor ``name`` (health-checked once)."""
+    """Join the real robot at ``address`` as the named actor ``name`` (health-checked now,
+    then whenever it has had no command for ``probe_interval_s``)."""
     actor = RealRobotActor.options(name=name, namespace=NAMESPACE).remote(
-        name, address, safety, token=token
+        name, address, safety, token=token, probe_interval_s=probe_interval_s
     )
     ray.get(actor.status.remote())  # surfaces a failed health check here, not later
     return actor
@@ -164,8 +169,11 @@ class _RaySupervisor(Supervisor):
         return self.manager_port
 
     def join_real_robot(self, name: str, address: str, safety: SafetyConfig) -> dict[str, Any]:
-        """Join a real robot; the supervisor lists it and checks it but never restarts it."""
-        self._real[name] = start_real_robot(name, address, safety)
+        """Join a real robot; it probes itself at the supervisor's probe interval when idle (a
+        failure pauses it) and the supervisor lists it, but never restarts it."""
+        self._real[name] = start_real_robot(
+            name, address, safety, probe_interval_s=self.config.probe_interval_s
+        )
         return ray.get(self._real[name].status.remote())
 
     def real_robots(self) -> list[dict[str, Any]]:

@@ -76,6 +76,40 @@ def test_safety_filter_clips_limits_and_refuses_malformed_or_jumps() -> None:
     assert refuse.refused == 1
 
 
+def test_an_idle_robot_is_probed_and_pauses_when_its_server_dies() -> None:
+    from robogym_ray.actors.real_robot import RealRobot
+    from robogym_ray.envs.client import Deadlines
+    from robogym_ray.robots.server import start_robot_server
+
+    server = start_robot_server("mir100")
+    robot = RealRobot(
+        "idle",
+        server.address,
+        SafetyConfig.mir100(),
+        deadlines=Deadlines.fast(),
+        probe_interval_s=0.1,
+    )
+    try:
+        deadline = time.monotonic() + 10
+        while robot.idle_probes < 3 and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert robot.idle_probes >= 3 and not robot.paused  # a live idle robot stays running
+        server.stop(grace=0)
+        while not robot.paused and time.monotonic() < deadline + 10:
+            time.sleep(0.05)
+        assert robot.paused and "GetState failed" in robot.pause_reason
+        probes = robot.idle_probes
+        time.sleep(0.5)
+        assert robot.idle_probes == probes  # a paused robot waits for its operator
+        with pytest.raises(RobotPausedError):
+            robot.send_action([0.1, 0.0])
+    finally:
+        robot.close()
+        server.stop(grace=0)
+    with pytest.raises(ValueError, match="probe_interval_s"):
+        RealRobot("x", server.address, SafetyConfig.mir100(), check=False, probe_interval_s=-1)
+
+
 @pytest.mark.ray
 @pytest.mark.usefixtures("ray_cluster")
 def test_paused_robot_stays_paused_until_resumed_and_is_never_restarted(
