@@ -1,0 +1,56 @@
+"""Success rates with 95 % intervals, and two policies compared episode by episode.
+
+    # one policy over 300 episodes (two evaluations with different seeds)
+    python experiments/compare.py docs/results/navigation-average-256-100min/sim \
+        docs/results/navigation-average-256-100min/sim-1100
+    # two policies on the same seeds: episodes only one of them solves, exact McNemar p
+    python experiments/compare.py docs/results/navigation-average-256-100min/sim{,-1100} \
+        --vs docs/results/navigation-average-100min/sim{,-1100}
+
+Each argument is an evaluation.json or a folder holding one (``robogym-ray evaluate --out``).
+The logic is ``robogym_ray.comparison``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Sequence
+
+from robogym_ray.comparison import load_outcomes, pair
+from robogym_ray.errors import ConfigError
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("a", nargs="+", help="Evaluations of policy A (merged by seed).")
+    parser.add_argument("--vs", nargs="+", default=[], help="Evaluations of policy B.")
+    parser.add_argument("--label-a", default="A", help="Name of policy A in the report.")
+    parser.add_argument("--label-b", default="B", help="Name of policy B in the report.")
+    parser.add_argument("--json", help="Also write the numbers to this JSON file.")
+    args = parser.parse_args(argv)
+    try:
+        a = load_outcomes(args.a, args.label_a)
+        if not args.vs:
+            print(a.summary())
+            record: dict = {"a": a.label, "episodes": len(a.success), "rate": a.rate}
+        else:
+            paired = pair(a, load_outcomes(args.vs, args.label_b))
+            print(paired.markdown())
+            record = {
+                "a": a.label, "b": paired.b.label, "rate_a": a.rate, "rate_b": paired.b.rate,
+                "both": paired.both, "only_a": paired.only_a, "only_b": paired.only_b,
+                "neither": paired.neither, "p_value": paired.p_value,
+            }  # fmt: skip
+    except ConfigError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(record, f, indent=2)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
