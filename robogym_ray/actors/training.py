@@ -15,7 +15,7 @@ import logging
 import time
 from collections import Counter, deque
 from collections.abc import Mapping
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
@@ -28,6 +28,7 @@ from robogym_ray.actors import training_setup as setup
 from robogym_ray.actors.evaluator import status_rates
 from robogym_ray.actors.real_client import RealRobotClientFactory
 from robogym_ray.actors.rollout import RolloutResult, box_dims, make_gym_env
+from robogym_ray.actors.run_stats import RunStats, WorkerSlot
 from robogym_ray.actors.selection import SnapshotSelector
 from robogym_ray.actors.tasks import TaskPreset, d4pg_for, resolve_task, safety_for
 from robogym_ray.actors.train_config import TrainConfig
@@ -36,33 +37,6 @@ from robogym_ray.learner.config import D4PGConfig
 from robogym_ray.robots.emulation import EmulationConfig
 
 log = logging.getLogger(__name__)
-
-
-@dataclass
-class WorkerSlot:
-    """Driver-side bookkeeping of one rollout worker."""
-
-    index: int
-    handle: Any
-    kind: str = "sim"
-    steps_since_sync: int = 0
-    weights_version: int = -1
-
-
-@dataclass
-class RunStats:
-    env_steps: int = 0
-    episodes: int = 0
-    dropped_steps: int = 0
-    learner_failures: int = 0
-    worker_failures: int = 0
-    robot_errors: int = 0
-    worker_steps: dict[int, int] = field(default_factory=dict)
-    statuses: deque[str] = field(default_factory=lambda: deque(maxlen=100))
-    returns: deque[float] = field(default_factory=lambda: deque(maxlen=100))
-    learner: dict[str, float] = field(default_factory=dict)
-    eval: dict[str, float] = field(default_factory=dict)
-    eval_history: list[dict[str, float]] = field(default_factory=list)
 
 
 class TrainingRun:
