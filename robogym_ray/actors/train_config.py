@@ -50,8 +50,9 @@ class TrainConfig:
     sigma_min: float = 0.1
     """Exploration noise of the last worker; worker sigmas spread from d4pg.sigma down to it."""
     sigma_decay_start: int = 0
-    """Env steps (all workers together) after which every worker's exploration noise starts to
-    shrink, when sigma_decay_steps > 0."""
+    """Env steps (all workers together, counted from this run's start: an --init-from run starts
+    again at 0) after which every worker's exploration noise starts to shrink, when
+    sigma_decay_steps > 0."""
     sigma_decay_steps: int = 0
     """Env steps over which each worker's sigma falls linearly to sigma_final_scale times its
     start (the spread between workers is kept); 0 = constant noise. Late in a run the replay
