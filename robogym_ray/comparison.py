@@ -112,14 +112,93 @@ class Paired:
         )
 
 
-def pair(a: Outcomes, b: Outcomes) -> Paired:
-    """Match episodes by seed; both sides must hold the same seeds of the same task."""
+def _check_same_episodes(a: Outcomes, b: Outcomes, names: tuple[str, str] = ("A", "B")) -> None:
     if a.env_id != b.env_id:
-        raise ConfigError(f"A is {a.env_id}, B is {b.env_id}: not the same task")
+        raise ConfigError(f"{names[0]} is {a.env_id}, {names[1]} is {b.env_id}: not the same task")
     if set(a.success) != set(b.success):
         missing = sorted(set(a.success) ^ set(b.success))
-        raise ConfigError(f"A and B hold different seeds, e.g. {missing[:5]} on one side only")
+        raise ConfigError(
+            f"{names[0]} and {names[1]} hold different seeds, e.g. {missing[:5]} on one side only"
+        )
+
+
+def pair(a: Outcomes, b: Outcomes) -> Paired:
+    """Match episodes by seed; both sides must hold the same seeds of the same task."""
+    _check_same_episodes(a, b)
     counts = [0, 0, 0, 0]
     for seed, ok_a in a.success.items():
         counts[(not ok_a) * 2 + (not b.success[seed])] += 1
     return Paired(a, b, *counts)
+
+
+@dataclass(frozen=True)
+class SharedFailures:
+    """Which episodes several policies fail, against what independent failures would give.
+
+    If each policy failed its episodes at random, the number of policies failing one episode
+    would follow a Poisson binomial law of their failure rates; far more episodes failed by
+    most policies than that law expects means the failures are the scenarios (hard starts and
+    goals), not chance, and another run of the same recipe would likely fail them again.
+    """
+
+    policies: tuple[Outcomes, ...]
+    failed_by: dict[int, tuple[int, ...]]
+    """Seed -> indices of the policies that failed it (seeds failed by at least one)."""
+
+    @property
+    def episodes(self) -> int:
+        return len(self.policies[0].success)
+
+    def histogram(self) -> list[int]:
+        """Entry k: episodes failed by exactly k of the policies."""
+        counts = [0] * (len(self.policies) + 1)
+        counts[0] = self.episodes - len(self.failed_by)
+        for who in self.failed_by.values():
+            counts[len(who)] += 1
+        return counts
+
+    def expected_if_independent(self) -> list[float]:
+        """Entry k: episodes expected to be failed by exactly k policies failing independently."""
+        dist = [1.0]
+        for policy in self.policies:
+            fail = 1.0 - policy.rate
+            longer = [0.0] * (len(dist) + 1)
+            for k, prob in enumerate(dist):
+                longer[k] += prob * (1.0 - fail)
+                longer[k + 1] += prob * fail
+            dist = longer
+        return [self.episodes * p for p in dist]
+
+    def markdown(self, at_least: int = 2) -> str:
+        n = len(self.policies)
+        lines = [f"- P{i + 1}: {p.summary()}" for i, p in enumerate(self.policies)]
+        observed, expected = self.histogram(), self.expected_if_independent()
+        lines += ["", "| failed by k policies | " + " | ".join(map(str, range(n + 1))) + " |"]
+        lines += ["|---|" + "---|" * (n + 1)]
+        lines += ["| episodes | " + " | ".join(map(str, observed)) + " |"]
+        lines += ["| if independent | " + " | ".join(f"{e:.2f}" for e in expected) + " |"]
+        shared = sorted(
+            (s for s, who in self.failed_by.items() if len(who) >= at_least),
+            key=lambda s: (-len(self.failed_by[s]), s),
+        )
+        lines += ["", f"Episodes failed by at least {at_least} of {n} policies:"]
+        for seed in shared:
+            who = ", ".join(f"P{i + 1}" for i in self.failed_by[seed])
+            lines.append(f"- seed {seed}: {len(self.failed_by[seed])} ({who})")
+        if not shared:
+            lines.append("- none")
+        return "\n".join(lines)
+
+
+def shared_failures(policies: list[Outcomes]) -> SharedFailures:
+    """Episodes (by seed) each policy failed; all must hold the same seeds of the same task."""
+    if len(policies) < 2:
+        raise ConfigError(f"shared failures need at least 2 policies, got {len(policies)}")
+    for i, other in enumerate(policies[1:], start=2):
+        _check_same_episodes(policies[0], other, ("P1", f"P{i}"))
+    failed_by = {
+        seed: who
+        for seed in sorted(policies[0].success)
+        if (who := tuple(i for i, p in enumerate(policies) if not p.success[seed]))
+    }
+    return SharedFailures(tuple(policies), failed_by)

@@ -7,7 +7,13 @@ from pathlib import Path
 
 import pytest
 
-from robogym_ray.comparison import load_outcomes, mcnemar_exact, pair, wilson_interval
+from robogym_ray.comparison import (
+    load_outcomes,
+    mcnemar_exact,
+    pair,
+    shared_failures,
+    wilson_interval,
+)
 from robogym_ray.errors import ConfigError
 from tests.experiments.test_scripts import script
 
@@ -64,3 +70,43 @@ def test_script_reproduces_the_documented_comparison(
     assert (record["both"], record["only_a"], record["only_b"]) == (284, 6, 6)
     assert record["p_value"] == 1.0 and "290/300 = 96.7 %" in capsys.readouterr().out
     assert script("compare").main([str(new / "sim"), "--vs", str(old / "sim-1100")]) == 2
+
+
+def test_shared_failures_count_policies_per_episode_against_independence(tmp_path: Path) -> None:
+    ok, bad = "success", "collision"
+    p1 = _evaluation(tmp_path / "p1", {1: bad, 2: bad, 3: ok, 4: ok})
+    p2 = _evaluation(tmp_path / "p2", {1: bad, 2: ok, 3: ok, 4: ok})
+    p3 = _evaluation(tmp_path / "p3", {1: bad, 2: ok, 3: bad, 4: ok})
+    shared = shared_failures([load_outcomes([p]) for p in (p1, p2, p3)])
+    assert shared.failed_by == {1: (0, 1, 2), 2: (0,), 3: (2,)}
+    assert shared.histogram() == [1, 2, 0, 1]
+    # Failure rates 1/2, 1/4, 1/2: P(all three fail) = 1/16, P(none) = 3/16; 4 episodes.
+    expected = shared.expected_if_independent()
+    assert expected[3] == pytest.approx(4 / 16) and expected[0] == pytest.approx(12 / 16)
+    assert sum(expected) == pytest.approx(4)
+    text = shared.markdown(at_least=2)
+    assert "| episodes | 1 | 2 | 0 | 1 |" in text and "- seed 1: 3 (P1, P2, P3)" in text
+    assert "seed 2" not in text.split("at least 2")[1]
+    with pytest.raises(ConfigError, match="at least 2 policies"):
+        shared_failures([load_outcomes([p1])])
+    short = _evaluation(tmp_path / "short", {1: ok, 2: ok, 3: ok})
+    with pytest.raises(ConfigError, match="P1 and P3 hold different seeds"):
+        shared_failures([load_outcomes([p]) for p in (p1, p2, short)])
+
+
+def test_script_lists_the_episodes_every_documented_navigation_policy_fails(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    # docs/results.md: seeds 1053 and 1237 are failed by all five 100/120-minute policies.
+    runs = ["navigation-average-100min", "navigation-average-120min",
+            "navigation-average-decay-100min", "navigation-average-256-100min",
+            "navigation-average-256-quiet-100min"]  # fmt: skip
+    argv = [a for r in runs for a in ("--policy", str(RESULTS / r / "sim"),
+                                      str(RESULTS / r / "sim-1100"))]  # fmt: skip
+    assert script("compare").main([*argv, "--json", str(tmp_path / "s.json")]) == 0
+    record = json.loads((tmp_path / "s.json").read_text())
+    assert record["failed_by_k"] == [272, 12, 9, 3, 2, 2]
+    assert [s for s, who in record["failed_by"].items() if len(who) == 5] == ["1053", "1237"]
+    assert "- seed 1053: 5 (P1, P2, P3, P4, P5)" in capsys.readouterr().out
+    with pytest.raises(SystemExit):  # A and --policy together is a usage error
+        script("compare").main([str(RESULTS / runs[0] / "sim"), *argv])
