@@ -19,6 +19,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from robogym_ray.actors.revisits import FailedStartRevisits
 from robogym_ray.errors import ConfigError, RobotServerError
 from robogym_ray.learner.actor import PolicyActor, to_env_action
 from robogym_ray.learner.config import D4PGConfig
@@ -39,6 +40,8 @@ class Episode:
     length: int
     final_status: str
     worker: int
+    revisit: bool = False
+    """The episode re-ran the start of one this worker failed earlier (``revisits.py``)."""
 
 
 @dataclass
@@ -82,6 +85,7 @@ class RolloutWorker:
         sigma: float | None = None,
         seed: int = 0,
         random_steps: int = 0,
+        revisits: FailedStartRevisits | None = None,
     ) -> None:
         """Args:
         make_env: builds this worker's env (Sim via a server provider, or Real by address).
@@ -90,6 +94,7 @@ class RolloutWorker:
         sigma: this worker's exploration noise (Ape-X gives each actor its own); None = d4pg's.
         seed: env and noise seed.
         random_steps: first steps taken with uniform random actions (before any weights).
+        revisits: re-run the starts of failed episodes; every reset is then seeded from it.
         """
         self.env = make_env()
         self.index = index
@@ -111,7 +116,9 @@ class RolloutWorker:
         self.weights_version = -1
         self.total_steps = 0
         self.retry_wait_s = 1.0
-        self.obs: np.ndarray | None = self.env.reset(seed=seed)[0]
+        self.revisits = revisits
+        self._start = revisits.next_start() if revisits else (seed, False)
+        self.obs: np.ndarray | None = self.env.reset(seed=self._start[0])[0]
         self._ret, self._len = 0.0, 0
 
     def set_weights(self, weights: Mapping[str, np.ndarray], version: int) -> None:
@@ -159,7 +166,11 @@ class RolloutWorker:
             self.obs = next_obs
             if terminated or truncated or status == SERVER_RESTARTED:
                 ended = status or ("truncated" if truncated else "terminated")
-                result.episodes.append(Episode(self._ret, self._len, ended, self.index))
+                result.episodes.append(
+                    Episode(self._ret, self._len, ended, self.index, self._start[1])
+                )
+                if self.revisits is not None:
+                    self.revisits.record(*self._start, status)
                 self._ret, self._len = 0.0, 0
                 self.nstep.drop()  # nothing may carry over into the next episode
                 self.obs = None  # the next step resets (a real robot's reset may fail)
@@ -172,13 +183,17 @@ class RolloutWorker:
         log.warning("worker %d: robot error, episode abandoned: %s", self.index, exc)
         result.robot_errors += 1
         result.dropped += self.nstep.drop()
-        result.episodes.append(Episode(self._ret, self._len, "robot_error", self.index))
+        result.episodes.append(
+            Episode(self._ret, self._len, "robot_error", self.index, self._start[1])
+        )
         self._ret, self._len = 0.0, 0
         self.obs = None
 
     def _try_reset(self, result: RolloutResult) -> bool:
+        start = self.revisits.next_start() if self.revisits else None
         try:
-            self.obs, _ = self.env.reset()
+            self.obs, _ = self.env.reset(seed=None if start is None else start[0])
+            self._start = start or (-1, False)
             return True
         except RobotServerError as exc:
             log.warning("worker %d: robot not ready (%s); retrying later", self.index, exc)

@@ -30,6 +30,9 @@ class RunStats:
     robot_errors: int = 0
     worker_steps: dict[int, int] = field(default_factory=dict)
     statuses: deque[str] = field(default_factory=lambda: deque(maxlen=100))
+    """Of the last 100 episodes that were not revisits (their rates are the task's)."""
+    revisits: int = 0
+    revisit_statuses: deque[str] = field(default_factory=lambda: deque(maxlen=100))
     returns: deque[float] = field(default_factory=lambda: deque(maxlen=100))
     learner: dict[str, float] = field(default_factory=dict)
     eval: dict[str, float] = field(default_factory=dict)

@@ -59,6 +59,14 @@ class TrainConfig:
     then holds more of the states the greedy policy visits."""
     sigma_final_scale: float = 1.0
     """Fraction of each worker's sigma left once the decay is over, in [0, 1]."""
+    revisit_failed: float = 0.0
+    """Chance, in [0, 1], that a simulated worker's reset re-runs the start (same reset seed:
+    same start, goal and obstacles) of an episode it failed recently; 0 = off. See
+    robogym_ray/actors/revisits.py."""
+    revisit_pool: int = 64
+    """Failed starts each worker keeps for revisits (the oldest is forgotten first)."""
+    revisit_max: int = 2
+    """Times one failed start is re-run at most (a revisit that succeeds retires it at once)."""
     checkpoint_every: int = 500
     """Learner steps between checkpoints (a restarted learner resumes from the latest)."""
     init_from: str | None = None
@@ -126,6 +134,9 @@ class TrainConfig:
             (self.sigma_decay_start >= 0, "sigma_decay_start", ">= 0"),
             (self.sigma_decay_steps >= 0, "sigma_decay_steps", ">= 0"),
             (0.0 <= self.sigma_final_scale <= 1.0, "sigma_final_scale", "in [0, 1]"),
+            (0.0 <= self.revisit_failed <= 1.0, "revisit_failed", "in [0, 1]"),
+            (self.revisit_pool >= 1, "revisit_pool", ">= 1"),
+            (self.revisit_max >= 1, "revisit_max", ">= 1"),
             (self.worker_cpus > 0 and self.learner_cpus > 0, "worker_cpus/learner_cpus", "> 0"),
         ]
         for ok, name, expected in checks:

@@ -146,6 +146,7 @@ class TrainingRun:
                 sigma=sigmas[i],
                 seed=cfg.seed + i,
                 random_steps=cfg.random_steps,
+                revisits=setup.revisits_for(cfg, i) if kind == "sim" else None,
             )
             slots.append(WorkerSlot(i, handle, kind))
         return slots
@@ -208,6 +209,10 @@ class TrainingRun:
         s.worker_steps[result.worker] = s.worker_steps.get(result.worker, 0) + result.steps
         for ep in result.episodes:
             s.episodes += 1
+            if ep.revisit:  # harder than the task's own starts: kept out of train/ rates
+                s.revisits += 1
+                s.revisit_statuses.append(ep.final_status)
+                continue
             s.statuses.append(ep.final_status)
             s.returns.append(ep.ret)
             logger.scalar("episode/return", ep.ret, s.env_steps)
@@ -288,6 +293,9 @@ class TrainingRun:
         statuses = list(s.statuses)
         out = {f"train/{k}": v for k, v in status_rates(statuses).items()} if statuses else {}
         out.update({f"eval/{k.removeprefix('eval_')}": v for k, v in s.eval.items()})
+        if s.revisit_statuses:
+            rates = status_rates(list(s.revisit_statuses))
+            out["explore/revisit_success_rate"] = rates["success_rate"]
         if self.selector is not None and self.selector.best is not None:
             out["eval/best_snapshot_success_rate"] = self.selector.best[0]
         out.update(
@@ -304,6 +312,7 @@ class TrainingRun:
                 "learner/mean_q": s.learner.get("mean_q", 0.0),
                 "learner/lr_scale": s.learner.get("lr_scale", 1.0),
                 "explore/noise_scale": setup.noise_scale(self.cfg, s.env_steps),
+                "explore/revisit_fraction": s.revisits / max(1, s.episodes),
                 "learner/steps": learner_steps,
                 "weights/lag": learner_steps - min(w.weights_version for w in self.workers),
                 "faults/dropped_steps": float(s.dropped_steps),
@@ -339,6 +348,7 @@ class TrainingRun:
             "best_snapshot": None if self.selector is None else self.selector.summary(),
             "server_nodes": [] if self.supervision is None else self.supervision.server_nodes(),
             "final_status_counts": dict(Counter(self.stats.statuses)),
+            "revisited_episodes": self.stats.revisits,
             "logdir": str(self.run_dir),
             **{k: round(v, 4) for k, v in scalars.items()},
         }

@@ -17,6 +17,7 @@ from robogym_ray.actors import remote
 from robogym_ray.actors.learner_service import CHECKPOINT_NAME
 from robogym_ray.actors.policy import FaultCause
 from robogym_ray.actors.provider import SupervisorServerProvider
+from robogym_ray.actors.revisits import FailedStartRevisits
 from robogym_ray.actors.supervisor import SupervisorConfig
 from robogym_ray.actors.train_config import TrainConfig
 from robogym_ray.errors import ConfigError
@@ -52,6 +53,15 @@ def noise_scale(cfg: TrainConfig, env_steps: int) -> float:
         return 1.0
     return linear_ramp(
         env_steps, cfg.sigma_decay_start, cfg.sigma_decay_steps, 1.0, cfg.sigma_final_scale
+    )
+
+
+def revisits_for(cfg: TrainConfig, index: int) -> FailedStartRevisits | None:
+    """Worker ``index``'s failed-start revisits (None when cfg.revisit_failed is 0)."""
+    if cfg.revisit_failed <= 0:
+        return None
+    return FailedStartRevisits(
+        cfg.revisit_failed, cfg.revisit_pool, cfg.revisit_max, seed=cfg.seed + index
     )
 
 

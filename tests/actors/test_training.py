@@ -40,6 +40,8 @@ EXPECTED_TAGS = {
     "throughput/env_steps_per_s",
     "throughput/learner_steps_per_s",
     "weights/lag",
+    "explore/revisit_fraction",
+    "explore/revisit_success_rate",
 }
 
 
@@ -60,10 +62,14 @@ def test_navigation_run_completes_with_tensorboard_scalars(tmp_path: Path) -> No
         run_name="nav",
         progress=False,
         log_every_s=1.0,
+        revisit_failed=1.0,  # the untrained policy fails: the next start of a worker revisits
     )
     summary = run_training(cfg)
     assert summary["env_steps"] >= 3000
     assert summary["learner_steps"] > 0 and summary["episodes"] > 0
+    # Revisits are counted apart from the task's own starts (whose rates train/ reports).
+    assert 0 < summary["revisited_episodes"] < summary["episodes"]
+    assert summary["explore/revisit_fraction"] > 0
     assert Path(summary["checkpoint"]).exists()
     tags = scalar_tags(str(tmp_path / "nav"))
     assert tags >= EXPECTED_TAGS, EXPECTED_TAGS - tags
