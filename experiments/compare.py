@@ -26,6 +26,32 @@ from robogym_ray.comparison import load_outcomes, pair, shared_failures
 from robogym_ray.errors import ConfigError
 
 
+def _shared_failures(args: argparse.Namespace) -> dict:
+    shared = shared_failures([load_outcomes(paths) for paths in args.policy])
+    print(shared.markdown(args.at_least))
+    return {
+        "policies": [p.label for p in shared.policies],
+        "rates": [p.rate for p in shared.policies],
+        "failed_by_k": shared.histogram(),
+        "expected_if_independent": shared.expected_if_independent(),
+        "failed_by": {str(s): list(who) for s, who in shared.failed_by.items()},
+    }
+
+
+def _one_or_paired(args: argparse.Namespace) -> dict:
+    a = load_outcomes(args.a, args.label_a)
+    if not args.vs:
+        print(a.summary())
+        return {"a": a.label, "episodes": len(a.success), "rate": a.rate}
+    paired = pair(a, load_outcomes(args.vs, args.label_b))
+    print(paired.markdown())
+    return {
+        "a": a.label, "b": paired.b.label, "rate_a": a.rate, "rate_b": paired.b.rate,
+        "both": paired.both, "only_a": paired.only_a, "only_b": paired.only_b,
+        "neither": paired.neither, "p_value": paired.p_value,
+    }  # fmt: skip
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("a", nargs="*", help="Evaluations of policy A (merged by seed).")
@@ -48,29 +74,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if bool(args.policy) == bool(args.a) or (args.policy and args.vs):
         parser.error("give policy A (and optionally --vs B), or --policy twice or more")
     try:
-        if args.policy:
-            shared = shared_failures([load_outcomes(paths) for paths in args.policy])
-            print(shared.markdown(args.at_least))
-            record: dict = {
-                "policies": [p.label for p in shared.policies],
-                "rates": [p.rate for p in shared.policies],
-                "failed_by_k": shared.histogram(),
-                "expected_if_independent": shared.expected_if_independent(),
-                "failed_by": {str(s): list(who) for s, who in shared.failed_by.items()},
-            }
-        elif not args.vs:
-            a = load_outcomes(args.a, args.label_a)
-            print(a.summary())
-            record = {"a": a.label, "episodes": len(a.success), "rate": a.rate}
-        else:
-            a = load_outcomes(args.a, args.label_a)
-            paired = pair(a, load_outcomes(args.vs, args.label_b))
-            print(paired.markdown())
-            record = {
-                "a": a.label, "b": paired.b.label, "rate_a": a.rate, "rate_b": paired.b.rate,
-                "both": paired.both, "only_a": paired.only_a, "only_b": paired.only_b,
-                "neither": paired.neither, "p_value": paired.p_value,
-            }  # fmt: skip
+        record = _shared_failures(args) if args.policy else _one_or_paired(args)
     except ConfigError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

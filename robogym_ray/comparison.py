@@ -161,11 +161,10 @@ class SharedFailures:
         """Entry k: episodes expected to be failed by exactly k policies failing independently."""
         dist = [1.0]
         for policy in self.policies:
-            fail = 1.0 - policy.rate
             longer = [0.0] * (len(dist) + 1)
             for k, prob in enumerate(dist):
-                longer[k] += prob * (1.0 - fail)
-                longer[k + 1] += prob * fail
+                longer[k] += prob * policy.rate  # this policy succeeds: k failures stay k
+                longer[k + 1] += prob * (1.0 - policy.rate)
             dist = longer
         return [self.episodes * p for p in dist]
 

@@ -79,6 +79,9 @@ def test_bad_settings_are_refused(kwargs: dict[str, Any], match: str) -> None:
 def test_train_config_checks_the_revisit_fields(field: str, value: float) -> None:
     with pytest.raises(ConfigError, match=f"TrainConfig.{field}"):
         TrainConfig(**{field: value})
+
+
+def test_workers_get_revisits_only_when_asked() -> None:
     assert revisits_for(TrainConfig(), 0) is None  # off by default
     on = revisits_for(TrainConfig(revisit_failed=0.3, revisit_pool=5, revisit_max=4), 1)
     assert on is not None and (on.probability, on.capacity, on.max_revisits) == (0.3, 5, 4)
