@@ -120,7 +120,7 @@ def main() -> None:
     count["all of the training"] = sum(count.values())
     for role, cpu in rows:
         per_step = f"{1000 * cpu / wall / env_rate:.2f}" if env_rate > 0 else "-"
-        procs = count[role] if role in count else "-"
+        procs = count.get(role, "-")
         print(f"| {role} | {procs} | {100 * cpu / wall:.0f} % | {per_step} |")
 
 
