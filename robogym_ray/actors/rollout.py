@@ -19,15 +19,14 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from robogym_ray.actors.revisits import FailedStartRevisits
+from robogym_ray.actors.revisits import ROBOT_ERROR, FailedStartRevisits
+from robogym_ray.envs.base import SERVER_RESTARTED
 from robogym_ray.errors import ConfigError, RobotServerError
 from robogym_ray.learner.actor import PolicyActor, to_env_action
 from robogym_ray.learner.config import D4PGConfig
 from robogym_ray.learner.nstep import NStepAccumulator, Transition, stack_transitions
 
 log = logging.getLogger(__name__)
-
-SERVER_RESTARTED = "server_restarted"
 
 EnvFactory = Callable[[], gym.Env]
 
@@ -184,7 +183,7 @@ class RolloutWorker:
         result.robot_errors += 1
         result.dropped += self.nstep.drop()
         result.episodes.append(
-            Episode(self._ret, self._len, "robot_error", self.index, self._start[1])
+            Episode(self._ret, self._len, ROBOT_ERROR, self.index, self._start[1])
         )
         self._ret, self._len = 0.0, 0
         self.obs = None

@@ -12,9 +12,10 @@ import pytest
 
 from robogym_ray.actors.evaluator import Evaluator, status_rates
 from robogym_ray.actors.learner_service import LearnerService
-from robogym_ray.actors.rollout import SERVER_RESTARTED, RolloutWorker, box_dims, make_gym_env
+from robogym_ray.actors.rollout import RolloutWorker, box_dims, make_gym_env
 from robogym_ray.actors.train_config import TrainConfig
 from robogym_ray.actors.training_setup import noise_scale, seed_checkpoint
+from robogym_ray.envs.base import SERVER_RESTARTED
 from robogym_ray.envs.client import Deadlines
 from robogym_ray.errors import ConfigError
 from robogym_ray.learner.config import D4PGConfig
