@@ -16,6 +16,7 @@ from typing import Any
 import gymnasium as gym
 
 _MIR = "robogym_ray.envs.mir100_tasks:"
+_MIRS = "robogym_ray.envs.mir100_sectors:"
 _UR = "robogym_ray.envs.ur_tasks:"
 _URA = "robogym_ray.envs.ur_avoidance:"
 
@@ -23,6 +24,8 @@ TASKS: tuple[tuple[str, str, tuple[str, ...]], ...] = (
     # (task name, entry point, robots: "Mir100" or UR model ids)
     ("NoObstacleNavigation", _MIR + "NoObstacleNavigationMir100", ("Mir100",)),
     ("ObstacleAvoidance", _MIR + "ObstacleAvoidanceMir100", ("Mir100",)),
+    # The same task observing the nearest range per laser sector (not robo-gym's observation).
+    ("ObstacleAvoidanceSectors", _MIRS + "ObstacleAvoidanceSectorsMir100", ("Mir100",)),
     # Problem 2 of the paper (15 obs / 6 actions); the UR10 is the paper's robot.
     ("EndEffectorPositioning", _UR + "EndEffectorPositioningUR", ("UR3", "UR5", "UR10", "UR16e")),
     # robo-gym 2.0.1's EndEffectorPositioningURSim-v0 (27 obs / 5 actions).
