@@ -25,11 +25,14 @@ class TaskPreset:
     """D4PGConfig overrides that suit this task's reward scale and horizon."""
 
 
+_NAVIGATION = {"v_min": -300.0, "v_max": 450.0, "layer_norm": True, "min_replay_size": 500}
+
 TASKS: dict[str, TaskPreset] = {
     # Navigation: shaping sums to ~50 x start distance (<= ~350), success +100, collision -200.
-    "navigation": TaskPreset(
-        "RoboGymRay/ObstacleAvoidanceMir100Sim-v0",
-        {"v_min": -300.0, "v_max": 450.0, "layer_norm": True, "min_replay_size": 500},
+    "navigation": TaskPreset("RoboGymRay/ObstacleAvoidanceMir100Sim-v0", _NAVIGATION),
+    # The same task observing the nearest laser return per sector (envs/mir100_sectors.py).
+    "navigation-sectors": TaskPreset(
+        "RoboGymRay/ObstacleAvoidanceSectorsMir100Sim-v0", _NAVIGATION
     ),
     # Positioning: progress 50/m over <= ~2.4 m, +100 at the goal, -200 on collision.
     "positioning": TaskPreset(

@@ -13,7 +13,7 @@ class TrainConfig:
 
     task: str = "navigation"
     """Env id (e.g. RoboGymRay/ObstacleAvoidanceMir100Sim-v0) or short name: navigation,
-    positioning, pendulum."""
+    navigation-sectors, positioning, pendulum."""
     workers: int = 2
     """Simulated rollout workers (each with its own robot server)."""
     emulated_workers: int = 0

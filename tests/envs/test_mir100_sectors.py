@@ -67,3 +67,12 @@ def test_nan_between_robo_gyms_beams_is_refused():
             env.observe(pb.State(state=state, success=True))
     finally:
         env.close()
+
+
+def test_short_name_trains_it_like_navigation():
+    from robogym_ray.actors.tasks import d4pg_for, resolve_task
+
+    preset = resolve_task("navigation-sectors")
+    assert preset.env_id == SECTORS and gym.spec(SECTORS) is not None
+    assert d4pg_for(preset) == d4pg_for(resolve_task("navigation"))
+    assert gym.spec(SECTORS.replace("Sim-v0", "Rob-v0")).kwargs == {"real_robot": True}
