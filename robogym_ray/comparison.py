@@ -13,6 +13,7 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
+from robogym_ray.envs.registration import episodes_of
 from robogym_ray.errors import ConfigError
 
 
@@ -113,7 +114,7 @@ class Paired:
 
 
 def _check_same_episodes(a: Outcomes, b: Outcomes, names: tuple[str, str] = ("A", "B")) -> None:
-    if a.env_id != b.env_id:
+    if episodes_of(a.env_id) != episodes_of(b.env_id):
         raise ConfigError(f"{names[0]} is {a.env_id}, {names[1]} is {b.env_id}: not the same task")
     if set(a.success) != set(b.success):
         missing = sorted(set(a.success) ^ set(b.success))

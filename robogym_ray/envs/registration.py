@@ -39,12 +39,24 @@ NONDETERMINISTIC = frozenset({"AvoidanceRaad2022"})
 """Tasks whose reset is not a function of the env seed alone: the sphere's spline is drawn by the
 robot server's own RNG (spec c.2.4), so a second ``reset(seed=s)`` on the same server differs.
 (A fresh embedded server is seeded from the first reset's seed, so fresh envs still agree.)"""
+SAME_EPISODES = {"ObstacleAvoidanceSectors": "ObstacleAvoidance"}
+"""Tasks that differ from another only in what they observe: the same reset seed gives the same
+episode (start, target, obstacles, reward, ends), so their evaluations pair seed by seed."""
 VARIANTS = {"Sim": False, "Rob": True}
 """Id suffix -> ``real_robot``."""
 
 
 def env_id(task: str, robot: str, variant: str) -> str:
     return f"RoboGymRay/{task}{robot}{variant}-v0"
+
+
+def episodes_of(env_id: str) -> str:
+    """The env id whose episodes ``env_id`` runs: observation-only variants map to their base."""
+    for task, base in SAME_EPISODES.items():
+        prefix = f"RoboGymRay/{task}"
+        if env_id.startswith(prefix):
+            return f"RoboGymRay/{base}{env_id[len(prefix) :]}"
+    return env_id
 
 
 def register_all() -> list[str]:

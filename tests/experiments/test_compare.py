@@ -53,6 +53,26 @@ def test_pairs_by_seed_across_files_and_refuses_mismatches(tmp_path: Path) -> No
     other = _evaluation(tmp_path / "other", {1: "success", 2: "success"}, env_id="Other-v0")
     with pytest.raises(ConfigError, match="not the same task"):
         pair(load_outcomes([a1]), load_outcomes([other]))
+    # An observation-only variant runs the same episodes, so it pairs; another task does not.
+    beams, sectors, ur = (
+        f"RoboGymRay/{t}Sim-v0"
+        for t in (
+            "ObstacleAvoidanceMir100",
+            "ObstacleAvoidanceSectorsMir100",
+            "EndEffectorPositioningUR10",
+        )
+    )
+    seeds = {1: "success", 2: "collision"}
+    paired = pair(
+        load_outcomes([_evaluation(tmp_path / "s", seeds, env_id=sectors)]),
+        load_outcomes([_evaluation(tmp_path / "b", seeds, env_id=beams)]),
+    )
+    assert (paired.both, paired.neither) == (1, 1)
+    with pytest.raises(ConfigError, match="not the same task"):
+        pair(
+            load_outcomes([_evaluation(tmp_path / "s", seeds, env_id=sectors)]),
+            load_outcomes([_evaluation(tmp_path / "u", seeds, env_id=ur)]),
+        )
     (tmp_path / "broken.json").write_text("{}")
     with pytest.raises(ConfigError, match="broken.json"):
         load_outcomes([tmp_path / "broken.json"])
