@@ -63,16 +63,11 @@ def test_pairs_by_seed_across_files_and_refuses_mismatches(tmp_path: Path) -> No
         )
     )
     seeds = {1: "success", 2: "collision"}
-    paired = pair(
-        load_outcomes([_evaluation(tmp_path / "s", seeds, env_id=sectors)]),
-        load_outcomes([_evaluation(tmp_path / "b", seeds, env_id=beams)]),
-    )
+    on_sectors = load_outcomes([_evaluation(tmp_path / "sectors", seeds, env_id=sectors)])
+    paired = pair(on_sectors, load_outcomes([_evaluation(tmp_path / "beams", seeds, beams)]))
     assert (paired.both, paired.neither) == (1, 1)
     with pytest.raises(ConfigError, match="not the same task"):
-        pair(
-            load_outcomes([_evaluation(tmp_path / "s", seeds, env_id=sectors)]),
-            load_outcomes([_evaluation(tmp_path / "u", seeds, env_id=ur)]),
-        )
+        pair(on_sectors, load_outcomes([_evaluation(tmp_path / "ur", seeds, env_id=ur)]))
     (tmp_path / "broken.json").write_text("{}")
     with pytest.raises(ConfigError, match="broken.json"):
         load_outcomes([tmp_path / "broken.json"])
