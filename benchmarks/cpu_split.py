@@ -89,13 +89,14 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=60.0, help="window length")
     parser.add_argument("--run-dir", type=Path, help="the run's directory (TensorBoard events)")
     args = parser.parse_args()
-    before, busy_before = cpu_seconds(), machine_busy_seconds()
+    # Reading the event file costs seconds of CPU on a long run: keep it out of the window.
     counters_before = run_counters(args.run_dir) if args.run_dir else None
+    before, busy_before = cpu_seconds(), machine_busy_seconds()
     start = time.monotonic()
     time.sleep(args.seconds)
     after, busy = cpu_seconds(), machine_busy_seconds() - busy_before
-    counters_after = run_counters(args.run_dir) if args.run_dir else None
     wall = time.monotonic() - start
+    counters_after = run_counters(args.run_dir) if args.run_dir else None
     by_role: dict[str, float] = defaultdict(float)
     count: dict[str, int] = defaultdict(int)
     for pid, (role, cpu) in after.items():
