@@ -6,7 +6,9 @@
 
 Hyperparameters: experiments/configs/navigation-average.json (the format
 `robogym-ray train --config` reads): navigation.json plus policy averaging and a spaced
-evaluator, the recipe of the best results in docs/results.md.
+evaluator, the best recipe on robo-gym's observation in docs/results.md (96.7 %).
+`--config experiments/configs/navigation-sectors-average.json` trains the same recipe on the
+same task observing the nearest laser return per sector, which reached 97.7 %.
 """
 
 from __future__ import annotations
