@@ -13,7 +13,12 @@ robot does, each difference configurable (``EmulationConfig``):
 * **dynamics**: velocity limits (MiR100 twist, UR joint speeds) and MiR100 acceleration limits
   scaled (the UR's controller is kinematic and has no acceleration limit to scale);
 * **sensor noise**: Gaussian noise on laser ranges (clipped to the scanner's range) and on the
-  joint-encoder positions, from its own seeded RNG, so a run in simulated time is reproducible.
+  joint-encoder positions, from its own seeded RNG, so a run in simulated time is reproducible;
+* **obstacles stay put** (MiR100): a real MiR server takes only the target from SetState, and
+  robo-gym's Real env sends zeros for the three cube poses. Teleported to those zeros, the cubes
+  would stand on the robot at the origin and pin it there. So all-zero cube poses leave the
+  cubes where they stand; any other poses (the Sim env's resets, ``--variant sim``: an operator
+  placing the cubes) still move them.
 
 The wire protocol is untouched: state layouts, validation and errors are the wrapped robot's.
 """
@@ -29,6 +34,7 @@ import numpy as np
 
 from robogym_ray.errors import ConfigError
 from robogym_ray.robots.base import SimRobot, StateRequest, StateSnapshot
+from robogym_ray.robots.mir100_state import OBSTACLES as OBSTACLE_SLOTS
 
 LASER_GROUPS = ("f_scan", "b_scan")
 """MiR100 sensor groups that hold laser ranges."""
@@ -106,7 +112,7 @@ class EmulatedRobot(SimRobot):
         return self.inner.validate_action(action)
 
     def set_state(self, request: StateRequest) -> None:
-        self.inner.set_state(request)  # raises before changing anything on bad input
+        self.inner.set_state(self._cubes_stay(request))  # raises before any change on bad input
         self._clear_delay()
 
     def publish(self, command: np.ndarray | None) -> None:
@@ -140,6 +146,21 @@ class EmulatedRobot(SimRobot):
         self.inner.close()
 
     # -- internals ----------------------------------------------------------------------------
+    def _cubes_stay(self, request: StateRequest) -> StateRequest:
+        """``request`` with all-zero MiR100 cube poses replaced by where the cubes stand."""
+        current = getattr(self.inner, "obstacle_poses", None)
+        state = request.state
+        if current is None or len(state) < OBSTACLE_SLOTS.stop:
+            return request
+        if not np.all(state[OBSTACLE_SLOTS] == 0.0):
+            return request
+        poses = current()
+        if poses.size == 0:  # a scene without cubes ignores the slots anyway
+            return request
+        state = state.copy()
+        state[OBSTACLE_SLOTS] = poses.ravel()
+        return replace(request, state=state)
+
     def _clear_delay(self) -> None:
         # The line starts full of stops: for the first k ticks the robot keeps still.
         self._delay = deque([None] * self.config.latency_ticks)

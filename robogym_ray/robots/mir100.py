@@ -127,6 +127,11 @@ class Mir100Robot(SimRobot):
                 )
         return values
 
+    def obstacle_poses(self) -> np.ndarray:
+        """(x, y, yaw) of each cube where it stands now, shape (n cubes, 3); (0, 3) without."""
+        poses = [self.world.pose(name) for name in self._obstacles]
+        return np.array([[pos[0], pos[1], yaw] for pos, yaw in poses]).reshape(-1, 3)
+
     def set_state(self, request: StateRequest) -> None:
         # Parse (and so validate) everything before the first change to the world.
         parsed = parse_set_state(request.state, self.config.max_abs_position)

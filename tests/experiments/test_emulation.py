@@ -126,6 +126,38 @@ def test_grpc_protocol_is_intact() -> None:
         handle.stop()
 
 
+def test_rob_env_leaves_the_cubes_where_they_stand() -> None:
+    """robo-gym's Real MiR env sends zero cube poses; a real server ignores them, so must ours.
+
+    Teleported to the zeros, the cubes would stand on the robot at the origin and pin it there
+    (every Rob episode a timeout). The Sim env's resets still place the cubes (--variant sim).
+    """
+    import gymnasium as gym
+
+    import robogym_ray  # noqa: F401 - registers the ids
+
+    handle = start_robot_server("mir100", scene="lab_6x8", seed=0, emulation=QUIET)
+    robot = handle.core.robot.inner
+    before = robot.obstacle_poses()
+    rob = gym.make("RoboGymRay/ObstacleAvoidanceMir100Rob-v0", rs_address=handle.address)
+    sim = gym.make("RoboGymRay/ObstacleAvoidanceMir100Sim-v0", rs_address=handle.address)
+    try:
+        rob.reset(seed=0)
+        np.testing.assert_allclose(robot.obstacle_poses(), before, atol=1e-6)
+        assert np.all(np.hypot(*before[:, :2].T) > 1.0)  # clear of the robot at the origin
+        for _ in range(20):
+            _, _, terminated, truncated, info = rob.step(np.array([1.0, 0.0], np.float32))
+            assert not (terminated or truncated), info
+        assert np.hypot(*rob.unwrapped.client.get_state().state[3:5]) > 0.3  # it drove off
+        sim.reset(seed=5)
+        placed = sim.unwrapped.obstacles
+        np.testing.assert_allclose(robot.obstacle_poses()[:, :2], placed[:, :2], atol=1e-6)
+    finally:
+        rob.close()
+        sim.close()
+        handle.stop()
+
+
 def test_config_is_checked() -> None:
     with pytest.raises(ConfigError, match="latency_ticks"):
         EmulationConfig(latency_ticks=-1)
