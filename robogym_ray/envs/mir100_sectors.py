@@ -1,9 +1,9 @@
 """MiR100 obstacle avoidance that observes the nearest laser return around each of its 16 beams.
 
 Why: robo-gym's ObstacleAvoidance observation keeps 16 of the 1012 laser ranges, about 67
-beams (~18 degrees of a scanner's sweep) apart. A cube edge or a narrow gap between two cubes
-can fall between two kept beams, so the policy may read a gap as open that the 0.40 m
-footprint rule closes. The policies trained on it fail mostly such starts
+beams (~34 degrees of a scanner's sweep, at 0.5 degrees per beam) apart. A cube edge or a
+narrow gap between two cubes can fall between two kept beams, so the policy may read a gap as
+open that the 0.40 m footprint rule closes. The policies trained on it fail mostly such starts
 (``docs/results.md``, "Where navigation fails"). This variant keeps the task (scene, resets,
 reward, collision rules, episode ends) and the meaning of each observation index: value ``i``
 is the *nearest* return among the beams around robo-gym's beam ``i``, instead of that one
