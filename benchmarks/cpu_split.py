@@ -66,7 +66,10 @@ def cpu_seconds() -> dict[int, tuple[str, float]]:
 
 
 def machine_busy_seconds() -> float:
-    """CPU seconds the whole machine spent busy (all processes, all CPUs) since boot."""
+    """CPU seconds the whole machine spent busy (all processes, all CPUs) since boot.
+
+    Steal time (field 8: the hypervisor ran someone else) counts as busy here, so on a shared
+    host this line can sit above the sum of the processes even when nothing else runs."""
     fields = [int(x) for x in Path("/proc/stat").read_text().split("\n", 1)[0].split()[1:]]
     idle = fields[3] + fields[4]  # idle + iowait
     return (sum(fields[:8]) - idle) / TICK
