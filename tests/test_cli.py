@@ -133,3 +133,27 @@ def test_a_config_extends_another_field_by_field(tmp_path: Path) -> None:
     out = run_cli("train", "--config", str(leaf))  # a bad field in a base fails before Ray
     assert out.returncode == 2 and "workerz" in out.stderr
     assert "Started a local Ray" not in out.stderr
+
+
+def test_train_prints_a_short_summary_and_json_on_request() -> None:
+    import argparse
+
+    from robogym_ray.actors import train_cmd
+
+    committed = Path("docs/results/navigation-sectors-average-100min/training-summary.json")
+    summary = json.loads(committed.read_text())
+    text = train_cmd.summary_text(summary)
+    lines = text.splitlines()
+    assert lines[0].startswith(f"Trained {summary['task']}: 1,822,950 env steps, 12,816 episodes")
+    assert "training episodes (last 100): success 97.0 %  collision 2.0 %  timeout 1.0 %" in text
+    assert "greedy evaluation (last 100 of 398 episodes): success 98.0 %" in text
+    assert f"checkpoint:  {summary['checkpoint']}" in text
+    assert f"tensorboard --logdir {summary['logdir']}" in text
+    assert len(text) < 1000 and len(lines) <= 8  # a few lines, not the 3 KB JSON
+    # A run too short to evaluate has no eval/ rates: the line is left out, nothing fails.
+    short = {k: v for k, v in summary.items() if not k.startswith("eval/")}
+    assert "greedy evaluation" not in train_cmd.summary_text(short)
+
+    parser = argparse.ArgumentParser()
+    train_cmd.add_arguments(parser)
+    assert parser.parse_args(["--json"]).json and not parser.parse_args([]).json

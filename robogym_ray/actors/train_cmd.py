@@ -33,6 +33,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     # Only flags given on the command line override the config file.
     add_config_args(parser, TrainConfig, only_given=True)
     add_config_args(parser, EmulationConfig, prefix="emu-", only_given=True)
+    parser.add_argument(
+        "--json",
+        action="store_true",
+        help="print the run's summary as one JSON line (it is always in RUN_DIR/summary.json)",
+    )
 
 
 def _given(args: argparse.Namespace, cls: type) -> dict[str, Any]:
@@ -92,5 +97,38 @@ def run(args: argparse.Namespace) -> int:
     setup = build_config(args)
     resolve_task(setup.train.task)  # fail fast, before Ray starts, on a bad task name
     summary = run_training(setup.train, setup.d4pg, setup.emulation)
-    print(json.dumps(summary), flush=True)
+    print(json.dumps(summary) if args.json else summary_text(summary), flush=True)
     return 0
+
+
+def _rates(summary: dict[str, Any], prefix: str) -> str:
+    return "  ".join(
+        f"{name} {100 * summary[f'{prefix}/{name}_rate']:.1f} %"
+        for name in ("success", "collision", "timeout")
+    )
+
+
+def summary_text(summary: dict[str, Any]) -> str:
+    """A few lines for a person: what was trained, how it went, where its files are."""
+    logdir = Path(summary["logdir"])
+    lines = [
+        f"Trained {summary['task']}: {summary['env_steps']:,} env steps, "
+        f"{summary['episodes']:,} episodes, {summary['learner_steps']:,} learner steps "
+        f"in {summary['wall_s']:.1f} s."
+    ]
+    if "train/success_rate" in summary:
+        lines.append(f"  training episodes (last 100): {_rates(summary, 'train')}")
+    if "eval/success_rate" in summary:
+        # The evaluator's rates are over its last 100 episodes (Evaluator's window).
+        total = int(summary.get("eval/episodes", 0))
+        last = f"last {min(100, total)} of {total}"
+        lines.append(f"  greedy evaluation ({last} episodes): {_rates(summary, 'eval')}")
+    restarts = sum(summary["restarts"].values())
+    lines += [
+        f"  faults: {restarts} server restarts, {summary['dropped_steps']} dropped steps, "
+        f"{summary['robot_errors']} robot errors",
+        f"  checkpoint:  {summary['checkpoint']}",
+        f"  TensorBoard: tensorboard --logdir {logdir}",
+        f"  summary:     {logdir / 'summary.json'} (or pass --json)",
+    ]
+    return "\n".join(lines)
