@@ -117,7 +117,9 @@ def summary_text(summary: dict[str, Any]) -> str:
         f"in {summary['wall_s']:.1f} s."
     ]
     if "train/success_rate" in summary:
-        lines.append(f"  training episodes (last 100): {_rates(summary, 'train')}")
+        # Over the last 100 episodes that were not revisits (RunStats), fewer in a short run.
+        counted = min(100, summary["episodes"] - summary.get("revisited_episodes", 0))
+        lines.append(f"  training episodes (last {counted}): {_rates(summary, 'train')}")
     if "eval/success_rate" in summary:
         # The evaluator's rates are over its last 100 episodes (Evaluator's window).
         total = int(summary.get("eval/episodes", 0))
