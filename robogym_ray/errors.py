@@ -39,3 +39,7 @@ class RobotServerError(RoboGymRayError):
         super().__init__(f"{message} (server {address})" if address else message)
         self.address = address
         self.cause = cause
+
+
+class RenderError(RoboGymRayError, RuntimeError):
+    """A render mode cannot work here (no display for ``human``, a missing optional package)."""

@@ -17,6 +17,11 @@ Actions are clipped to the action space; a wrong shape, NaN or inf raises
 ``InvalidActionError`` before anything is sent. Observations outside the observation space (NaN
 included) raise ``InvalidStateError`` naming the index, value and bounds, as robo-gym's envs do.
 
+Rendering: ``render_mode="rgb_array"`` returns a ``uint8`` H x W x 3 frame of the scene drawn
+from the last state message (``envs/render``: a digital twin, so Real envs render too);
+``"human"`` shows the frames in a window after every reset and step (it needs a display and
+fails at construction without one). ``render_config`` sets the size and camera.
+
 Episodes: the step limit (``max_episode_steps``) ends an episode with ``truncated=True``.
 robo-gym instead reports ``done=True`` (there is no truncation in robo-gym); we truncate so
 that learners bootstrap from the last state. ``info["final_status"]`` is set on the last step.
@@ -32,6 +37,7 @@ import gymnasium as gym
 import numpy as np
 
 from robogym_ray.envs.client import Deadlines, RobotServerClient, check_action
+from robogym_ray.envs.render import HumanWindow, RenderConfig, check_display
 from robogym_ray.envs.servers import (
     ServerLease,
     ServerProvider,
@@ -66,9 +72,12 @@ class RobotServerEnv(gym.Env[np.ndarray, np.ndarray]):
         client_factory: builds the client from ``(address, deadlines=, token=)`` instead of a
             direct gRPC ``RobotServerClient`` (the training program routes a real robot's env
             through its real-robot actor this way, for the safety filter and pause/resume).
+        render_mode: None, ``"rgb_array"`` or ``"human"`` (see the module docstring).
+        render_config: frame size and camera (default ``RenderConfig()``: 640 x 480, the
+            robot family's default camera).
     """
 
-    metadata: ClassVar[dict[str, Any]] = {"render_modes": []}
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array", "human"], "render_fps": 10}
     max_episode_steps: int = 500
     limit_status: ClassVar[str] = MAX_STEPS
     """``final_status`` when the step limit ends an episode."""
@@ -84,7 +93,24 @@ class RobotServerEnv(gym.Env[np.ndarray, np.ndarray]):
         server_seed: int | None = None,
         max_steps: int | None = None,
         client_factory: Callable[..., Any] | None = None,
+        render_mode: str | None = None,
+        render_config: RenderConfig | None = None,
     ) -> None:
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ConfigError(
+                f"{type(self).__name__}: render_mode {render_mode!r} is not one of "
+                f"{self.metadata['render_modes']} (or None)"
+            )
+        if render_mode == "human":
+            check_display(type(self).__name__)
+        self.render_mode = render_mode
+        self.render_config = render_config or RenderConfig()
+        self._window = (
+            HumanWindow(type(self).__name__, self.metadata["render_fps"])
+            if render_mode == "human"
+            else None
+        )
+        self._last_msg: pb.State | None = None
         if real_robot and not rs_address:
             raise ConfigError(
                 f"{type(self).__name__}: the Real variant needs rs_address='host:port' of a "
@@ -132,6 +158,10 @@ class RobotServerEnv(gym.Env[np.ndarray, np.ndarray]):
         """Observation (float32) from a state message; may raise InvalidStateError."""
 
     @abstractmethod
+    def _draw(self, msg: pb.State, cfg: RenderConfig) -> np.ndarray:
+        """A ``uint8`` H x W x 3 frame of the scene in ``msg`` (``envs/render``)."""
+
+    @abstractmethod
     def _evaluate(
         self, msg: pb.State, obs: np.ndarray, action: np.ndarray
     ) -> tuple[float, str | None, StepInfo]:
@@ -156,6 +186,7 @@ class RobotServerEnv(gym.Env[np.ndarray, np.ndarray]):
         self.elapsed_steps = 0
         obs = self.observe(msg)
         self._last_obs = obs
+        self._shown(msg, reset=True)
         return obs, {"server": self.client.address if self.client else ""}
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, StepInfo]:
@@ -180,9 +211,41 @@ class RobotServerEnv(gym.Env[np.ndarray, np.ndarray]):
         if status is not None:
             info["final_status"] = status
         self._last_obs = obs
+        self._shown(msg)
         return obs, float(reward), terminated, truncated, info
 
+    def render(self) -> np.ndarray | None:
+        """The current frame (``rgb_array``); ``human`` shows it (frames follow every step)."""
+        if self.render_mode is None:
+            gym.logger.warn(
+                f"{type(self).__name__}.render() without a render_mode: pass "
+                "render_mode='rgb_array' (or 'human') to gymnasium.make"
+            )
+            return None
+        if self._last_msg is None:
+            raise gym.error.ResetNeeded(f"{type(self).__name__}: call reset() before render()")
+        frame = self._draw(self._last_msg, self.render_config)
+        if self._window is not None:
+            self._window.show(frame)
+            return None
+        return frame
+
+    def _shown(self, msg: pb.State, reset: bool = False) -> None:
+        """Keep the state a frame is drawn from; a human window is redrawn right away."""
+        if self.render_mode is None:  # not rendering costs nothing
+            return
+        self._last_msg = msg
+        self._on_state(msg, reset)
+        if self._window is not None:
+            self.render()
+
+    def _on_state(self, msg: pb.State, reset: bool) -> None:
+        """Hook for what a task keeps for its frames (e.g. the path so far); called only when
+        rendering."""
+
     def close(self) -> None:
+        if self._window is not None:
+            self._window.close()
         self._disconnect()
         super().close()
 

@@ -15,6 +15,8 @@ from gymnasium import spaces
 
 from robogym_ray.envs.base import RobotServerEnv, StepInfo, polar_2d
 from robogym_ray.envs.client import RobotServerClient
+from robogym_ray.envs.render import RenderConfig
+from robogym_ray.envs.render.mir100 import draw_mir100
 from robogym_ray.errors import InvalidStateError
 from robogym_ray.protocol import robot_server_pb2 as pb
 
@@ -76,6 +78,24 @@ class _Mir100Task(RobotServerEnv):
 
     def _obstacle_vector(self) -> np.ndarray:
         return np.zeros(9)
+
+    # -- frames ----------------------------------------------------------------------------
+    def _on_state(self, msg: pb.State, reset: bool) -> None:
+        if reset:
+            self._path: list[np.ndarray] = []
+        self._path.append(self._pose(msg)[:2])
+
+    def _draw(self, msg: pb.State, cfg: RenderConfig) -> np.ndarray:
+        caption = f"{type(self).__name__}  step {self.elapsed_steps}"
+        path = np.array(getattr(self, "_path", []))
+        return draw_mir100(
+            msg.state,
+            cfg,
+            walls=self.scene == "lab_6x8",
+            obstacles=self._obstacle_vector(),  # what SetState placed (zeros on a real robot)
+            path=path,
+            caption=caption,
+        )
 
     # -- stepping --------------------------------------------------------------------------
     def _send(self, client: RobotServerClient, action: np.ndarray) -> pb.State:

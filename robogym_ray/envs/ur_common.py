@@ -17,6 +17,8 @@ from scipy.spatial.transform import Rotation
 
 from robogym_ray.envs.base import RobotServerEnv
 from robogym_ray.envs.client import RobotServerClient
+from robogym_ray.envs.render import RenderConfig
+from robogym_ray.envs.render.ur import draw_ur
 from robogym_ray.errors import ConfigError, InvalidStateError
 from robogym_ray.protocol import robot_server_pb2 as pb
 
@@ -112,6 +114,8 @@ class URTask(RobotServerEnv):
         **kwargs: see ``RobotServerEnv``.
     """
 
+    metadata: ClassVar[dict[str, Any]] = {**RobotServerEnv.metadata, "render_fps": 20}
+    """Frames at the action rate (20 Hz)."""
     rs_mode: ClassVar[str] = "only_robot"
     scene: ClassVar[str] = "empty"
     velocity_scale: ClassVar[float] = 0.2
@@ -204,6 +208,22 @@ class URTask(RobotServerEnv):
     @staticmethod
     def velocities(msg: pb.State) -> np.ndarray:
         return np.array([msg.state_dict[k] for k in VELOCITY_KEYS], dtype=np.float64)
+
+    def _draw(self, msg: pb.State, cfg: RenderConfig) -> np.ndarray:
+        sd = msg.state_dict
+        # The positioning tasks' object 0 is their target; the avoidance tasks' an obstacle.
+        target = getattr(self, "target", None)
+        moving = target is None and "object_0_to_ref_translation_x" in sd
+        caption = f"{type(self).__name__} ({self.ur_model})  step {self.elapsed_steps}"
+        return draw_ur(
+            self.ur_model,
+            self.joints(msg),
+            cfg,
+            target=target,
+            objects=[frame_xyz(sd, "object_0")] if moving else [],
+            collided=sd.get("in_collision", 0.0) >= 0.5,
+            caption=caption,
+        )
 
     def collided(self, msg: pb.State) -> bool:
         """Self/ground/object contact. Real robots report no collisions (spec e.2): always False."""

@@ -24,7 +24,7 @@ LAB_ORIGIN = (-0.027, 0.014)
 WALL_THICKNESS = 0.15
 WALL_HEIGHT = 0.5
 # (name, centre in the wall model's frame, half extents along x and y)
-_LAB_WALLS = (
+LAB_WALLS = (
     ("wall_north", (0.0, 3.925), (3.0, WALL_THICKNESS / 2)),
     ("wall_south", (0.0, -3.925), (3.0, WALL_THICKNESS / 2)),
     ("wall_east", (2.925, 0.0), (WALL_THICKNESS / 2, 4.0)),
@@ -75,9 +75,9 @@ def build_scene(world: PyBulletWorld, scene: str) -> tuple[str, ...]:
     if scene == "empty":
         return ()
     ox, oy = LAB_ORIGIN
-    for name, (cx, cy), (hx, hy) in _LAB_WALLS:
+    for name, (cx, cy), (hx, hy) in LAB_WALLS:
         world.add_box(name, (hx, hy, WALL_HEIGHT / 2), (ox + cx, oy + cy, WALL_HEIGHT / 2))
     half = CUBE_SIZE / 2
     for name, (x, y) in zip(OBSTACLES, _INITIAL_CUBES, strict=True):
         world.add_box(name, (half, half, half), (x, y, half), rgba=(0.2, 0.4, 0.8, 1.0))
-    return tuple(name for name, _, _ in _LAB_WALLS) + OBSTACLES
+    return tuple(name for name, _, _ in LAB_WALLS) + OBSTACLES
