@@ -52,7 +52,9 @@ class RenderConfig:
         for name in ("width", "height"):
             value = getattr(self, name)
             if not isinstance(value, int) or not 16 <= value <= 4096:
-                raise ConfigError(f"RenderConfig.{name} must be an int in [16, 4096], got {value!r}")
+                raise ConfigError(
+                    f"RenderConfig.{name} must be an int in [16, 4096], got {value!r}"
+                )
 
 
 class Canvas:

@@ -32,7 +32,7 @@ def default_camera(model: str) -> ViewCamera:
 
 
 def arm_points(model: str, q_env: Sequence[float]) -> np.ndarray:
-    """The arm's skeleton in ``base_link``: ground, base, each joint (and the elbow corner), tool0."""
+    """The arm's skeleton in ``base_link``: ground, base, joints (and elbow corner), tool0."""
     frames = forward_kinematics(model, np.asarray(q_env, dtype=np.float64))
     spec = UR_MODELS[model]
     points = [np.array([0.0, 0.0, -BASE_LINK_HEIGHT]), np.zeros(3)]  # pedestal, base_link
@@ -89,8 +89,10 @@ def draw_ur(
         items.append((seg_depth, "link", px[i : i + 2], spec.link_radius))
     for i in range(1, len(points) - 1):
         items.append((float(depth[i]) - 1e-3, "joint", px[i : i + 1], spec.link_radius * 1.2))
-    for xyz, kind, radius in [(t, "target", 0.05) for t in ([target] if target is not None else [])]\
-            + [(o, "object", 0.1) for o in objects]:  # fmt: skip
+    spheres = [(o, "object", 0.1) for o in objects]
+    if target is not None:
+        spheres.append((target, "target", 0.05))
+    for xyz, kind, radius in spheres:
         opx, odepth = project(np.asarray(xyz, float)[None])
         items.append((float(odepth[0]), kind, opx, radius))
     items.append((float(depth[-1]) - 2e-3, "tool", px[-1:], spec.link_radius * 0.9))
