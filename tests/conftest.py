@@ -1,11 +1,40 @@
-"""Suite-wide settings: Ray's CLI and the embedded Ray must agree on authentication."""
+"""Suite-wide settings (Ray's CLI and the embedded Ray agree on authentication) and fixtures."""
 
 from __future__ import annotations
 
 import os
+import shutil
+import subprocess
+from collections.abc import Iterator
+
+import pytest
 
 # Ray 2.60 enables token auth by default; `ray start` / `ray job submit` in the tests and the
 # embedded `ray.init` must see the same mode, so the whole suite runs with it disabled.
 os.environ.setdefault("RAY_AUTH_MODE", "disabled")
 # Keep Ray's usage-stats prompt and dashboard out of test runs (no network here anyway).
 os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
+
+
+@pytest.fixture(scope="session")
+def x_display() -> Iterator[str]:
+    """A real X server (Xvfb) for human-mode rendering; skipped where none can be started."""
+    binary = shutil.which("Xvfb")
+    if binary is None:
+        pytest.skip("no Xvfb on this machine (Debian: apt-get install xvfb; .ci/run installs it)")
+    read, write = os.pipe()
+    proc = subprocess.Popen(
+        [binary, "-displayfd", str(write), "-screen", "0", "800x600x24", "-nolisten", "tcp"],
+        pass_fds=(write,),
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    os.close(write)
+    with os.fdopen(read) as pipe:
+        number = pipe.readline().strip()  # Xvfb writes its display number once it is ready
+    if not number:
+        proc.kill()
+        pytest.skip("Xvfb did not start")
+    yield f":{number}"
+    proc.terminate()
+    proc.wait(timeout=10)
