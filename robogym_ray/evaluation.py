@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from robogym_ray.envs.render.video import EpisodeVideos
 from robogym_ray.errors import ConfigError
 from robogym_ray.robots.serve import serve_process
 
@@ -59,12 +60,22 @@ class EvaluationConfig:
     (policy_average_tau > 0), which is evaluated by default."""
     out: str | None = None
     """Directory for evaluation.json and evaluation.md (default: print only)."""
+    video: str | None = None
+    """Directory for an MP4 of each of the first --video-episodes episodes (named by index,
+    seed and outcome); needs the video extra."""
+    video_episodes: int = 3
+    """How many episodes --video films (the first ones)."""
+    paths: bool = False
+    """Record each episode's robot positions (MiR100: x, y; UR: tool0) in evaluation.json, for
+    experiments/figures.py's path plots."""
 
     def __post_init__(self) -> None:
         if self.variant not in ("rob", "sim"):
             raise ConfigError(f"variant must be 'rob' or 'sim', got {self.variant!r}")
         if self.episodes < 1:
             raise ConfigError(f"episodes must be >= 1, got {self.episodes}")
+        if self.video_episodes < 1:
+            raise ConfigError(f"video_episodes must be >= 1, got {self.video_episodes}")
         if self.via_actor and (self.rs_address is None or self.variant != "rob"):
             raise ConfigError("via_actor needs --rs-address and --variant rob")
 
@@ -78,6 +89,14 @@ class EpisodeRecord:
     length: int
     target: list[float] | None
     """The episode's target (MiR100: x, y, yaw; UR: x, y, z in base_link), if the task has one."""
+    path: list[list[float]] | None = None
+    """The robot's positions after reset and after each step (``--paths``), else None."""
+
+    def to_dict(self) -> dict[str, Any]:
+        record = asdict(self)
+        if self.path is None:  # evaluation.json stays as it was without --paths
+            del record["path"]
+        return record
 
 
 @dataclass
@@ -110,7 +129,7 @@ class EvaluationResult:
         }  # fmt: skip
 
     def to_dict(self) -> dict[str, Any]:
-        return {**self.summary(), "episodes": [asdict(e) for e in self.episodes]}
+        return {**self.summary(), "episodes": [e.to_dict() for e in self.episodes]}
 
     def to_markdown(self) -> str:
         s, n = self.summary(), len(self.episodes)
@@ -182,9 +201,18 @@ def report(result: EvaluationResult, out: str | None) -> None:
 
 
 def run_episodes(
-    policy: Callable[[np.ndarray], np.ndarray], env: Any, episodes: int, seed: int
+    policy: Callable[[np.ndarray], np.ndarray],
+    env: Any,
+    episodes: int,
+    seed: int,
+    videos: EpisodeVideos | None = None,
+    paths: bool = False,
 ) -> Iterator[EpisodeRecord]:
-    """Greedy episodes; ``policy`` maps an observation to an action in [-1, 1]."""
+    """Greedy episodes; ``policy`` maps an observation to an action in [-1, 1].
+
+    ``videos`` films the episodes it wants (the env renders ``rgb_array``); ``paths`` keeps the
+    robot's positions (``env.unwrapped.position()``) in each record.
+    """
     from robogym_ray.learner.actor import to_env_action
 
     low = env.action_space.low.astype(np.float64)
@@ -192,6 +220,9 @@ def run_episodes(
     for i in range(episodes):
         obs, _ = env.reset(seed=seed + i)
         target = getattr(env.unwrapped, "target", None)
+        filmed = videos is not None and videos.wants(i)
+        frames = [env.render()] if filmed else []
+        path = [_where(env)] if paths else None
         ret, length, done, info = 0.0, 0, False, {}
         truncated = False
         while not done:
@@ -200,11 +231,23 @@ def run_episodes(
             ret += float(reward)
             length += 1
             done = terminated or truncated
+            if filmed:
+                frames.append(env.render())
+            if path is not None:
+                path.append(_where(env))
         status = str(info.get("final_status", "truncated" if truncated else "terminated"))
+        if filmed:
+            assert videos is not None
+            videos.save(i, seed + i, status, frames)
         yield EpisodeRecord(
             i, seed + i, status, ret, length,
-            None if target is None else [float(v) for v in np.ravel(target)],
+            None if target is None else [float(v) for v in np.ravel(target)], path,
         )  # fmt: skip
+
+
+def _where(env: Any) -> list[float]:
+    position = env.unwrapped.position()
+    return [] if position is None else [round(float(v), 4) for v in position]
 
 
 @contextlib.contextmanager
@@ -258,12 +301,18 @@ def evaluate(policy_path: str | Path, cfg: EvaluationConfig) -> EvaluationResult
             kwargs["client_factory"] = stack.enter_context(
                 real_robot_actor(env_id, cfg.rs_address, cfg.token)
             )
+        videos = None
+        if cfg.video:
+            kwargs["render_mode"] = "rgb_array"
         env = gym.make(env_id, **kwargs)
         stack.callback(env.close)
+        if cfg.video:
+            fps = env.metadata["render_fps"]
+            videos = EpisodeVideos(cfg.video, min(cfg.video_episodes, cfg.episodes), fps)
         _check_dims(env, policy.info.obs_dim, policy.info.act_dim, env_id)
         result = EvaluationResult(env_id, cfg.rs_address, label)
         start = time.perf_counter()
-        result.episodes = list(run_episodes(policy, env, cfg.episodes, cfg.seed))
+        result.episodes = list(run_episodes(policy, env, cfg.episodes, cfg.seed, videos, cfg.paths))
         result.wall_s = time.perf_counter() - start
     return result
 

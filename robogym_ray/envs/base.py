@@ -232,12 +232,20 @@ class RobotServerEnv(gym.Env[np.ndarray, np.ndarray]):
 
     def _shown(self, msg: pb.State, reset: bool = False) -> None:
         """Keep the state a frame is drawn from; a human window is redrawn right away."""
-        if self.render_mode is None:  # not rendering costs nothing
+        self._last_msg = msg  # a reference: position() and render() read it
+        if self.render_mode is None:  # not rendering costs nothing more
             return
-        self._last_msg = msg
         self._on_state(msg, reset)
         if self._window is not None:
             self.render()
+
+    def position(self) -> np.ndarray | None:
+        """Where the robot is in the last state (MiR100: x, y; UR: tool0 x, y, z), for paths
+        drawn over a map; None before the first reset or for a task without one."""
+        return None if self._last_msg is None else self._position(self._last_msg)
+
+    def _position(self, msg: pb.State) -> np.ndarray | None:
+        return None
 
     def _on_state(self, msg: pb.State, reset: bool) -> None:
         """Hook for what a task keeps for its frames (e.g. the path so far); called only when

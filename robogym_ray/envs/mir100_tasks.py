@@ -80,10 +80,13 @@ class _Mir100Task(RobotServerEnv):
         return np.zeros(9)
 
     # -- frames ----------------------------------------------------------------------------
+    def _position(self, msg: pb.State) -> np.ndarray:
+        return self._pose(msg)[:2]
+
     def _on_state(self, msg: pb.State, reset: bool) -> None:
         if reset:
             self._path: list[np.ndarray] = []
-        self._path.append(self._pose(msg)[:2])
+        self._path.append(self._position(msg))
 
     def _draw(self, msg: pb.State, cfg: RenderConfig) -> np.ndarray:
         caption = f"{type(self).__name__}  step {self.elapsed_steps}"

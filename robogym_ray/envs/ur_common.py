@@ -209,6 +209,9 @@ class URTask(RobotServerEnv):
     def velocities(msg: pb.State) -> np.ndarray:
         return np.array([msg.state_dict[k] for k in VELOCITY_KEYS], dtype=np.float64)
 
+    def _position(self, msg: pb.State) -> np.ndarray:
+        return frame_xyz(msg.state_dict, "ee")
+
     def _draw(self, msg: pb.State, cfg: RenderConfig) -> np.ndarray:
         sd = msg.state_dict
         # The positioning tasks' object 0 is their target; the avoidance tasks' an obstacle.
