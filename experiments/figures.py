@@ -11,6 +11,10 @@
   a run continued with ``--init-from`` is drawn as one curve, its continuations marked.
 * ``ur_targets.png``: the UR10 final-evaluation targets (base_link, m) coloured by terminal
   status, in 3D and seen from above.
+* ``mir_paths.png`` (``--mir-eval``, an ``evaluate --paths`` evaluation.json): every MiR100
+  evaluation episode as a path over the lab map coloured by terminal status, and beside it the
+  failed episodes one by one (or ``--mir-seeds``) with their cubes, the 0.40 m no-go circle
+  around each cube centre, the start, the target and where the episode ended.
 """
 
 from __future__ import annotations
@@ -26,6 +30,7 @@ TAGS = ("train/success_rate", "eval/success_rate")
 FIRST_EPISODE_TAG = "episode/return"  # written once per finished episode
 STATUS_COLOURS = {"success": "tab:green", "collision": "tab:red",
                   "max_steps_exceeded": "tab:orange"}  # fmt: skip
+CLOSE_UPS = 4  # failed episodes drawn one by one beside the overview
 
 
 def read_scalars(run_dir: str | Path, tags: Sequence[str] = TAGS) -> dict[str, tuple[list, list]]:
@@ -132,6 +137,83 @@ def plot_targets(evaluation_json: str | Path, out: str | Path) -> Path:
     return out
 
 
+def _lab(ax: Any) -> None:
+    """The lab's walls, in the world frame, on ``ax``."""
+    from matplotlib.patches import Polygon
+
+    from robogym_ray.envs.render.mir100 import box_corners
+    from robogym_ray.robots.mir100_scenes import LAB_ORIGIN, LAB_WALLS
+
+    for _, (cx, cy), half in LAB_WALLS:
+        corners = box_corners((LAB_ORIGIN[0] + cx, LAB_ORIGIN[1] + cy), half, 0.0)
+        ax.add_patch(Polygon(corners, color="0.35"))
+    ax.set(aspect="equal", xlim=(-3.2, 3.2), ylim=(-4.2, 4.2))
+    ax.tick_params(labelsize=7)
+
+
+def _episode(ax: Any, ep: Mapping[str, Any], close_up: bool) -> None:
+    """One episode: its path, start and end; in a close-up also its cubes and target."""
+    from matplotlib.patches import Circle, Polygon
+
+    from robogym_ray.envs.mir100_tasks import ObstacleAvoidanceMir100
+    from robogym_ray.envs.render.mir100 import SUCCESS_RADIUS, box_corners
+    from robogym_ray.robots.mir100_scenes import CUBE_SIZE
+
+    colour = STATUS_COLOURS.get(ep["final_status"], "tab:gray")
+    xs, ys = zip(*ep["path"], strict=True)
+    ax.plot(xs, ys, color=colour, lw=1.4 if close_up else 0.6, alpha=1.0 if close_up else 0.5)
+    ax.plot(xs[0], ys[0], "o", color=colour, ms=4 if close_up else 2)
+    if ep["final_status"] != "success":
+        ax.plot(xs[-1], ys[-1], "x", color="k", ms=7 if close_up else 4)
+    if not close_up:
+        return
+    clearance = ObstacleAvoidanceMir100.obstacle_clearance
+    for x, y, yaw in ep.get("obstacles") or []:
+        ax.add_patch(Polygon(box_corners((x, y), (CUBE_SIZE / 2,) * 2, yaw), color="tab:blue"))
+        ax.add_patch(Circle((x, y), clearance, fill=False, ls="--", color="tab:blue", lw=0.8))
+    if ep.get("target"):
+        tx, ty = ep["target"][:2]
+        ax.add_patch(Circle((tx, ty), SUCCESS_RADIUS, color="tab:green", alpha=0.4))
+        ax.plot(tx, ty, "*", color="tab:green", ms=9)
+    ax.set_title(f"seed {ep['seed']}: {ep['final_status']}, {ep['length']} steps", fontsize=8)
+
+
+def plot_paths(
+    evaluation_json: str | Path, out: str | Path, seeds: Sequence[int] | None = None
+) -> Path:
+    """MiR100 evaluation paths over the lab, coloured by status, and close-ups of failures."""
+    plt = _pyplot()
+    data = json.loads(Path(evaluation_json).read_text())
+    episodes = [e for e in data["episodes"] if e.get("path")]
+    if not episodes or len(episodes[0]["path"][0]) != 2:
+        raise SystemExit(f"{evaluation_json}: no MiR100 paths; run evaluate with --paths")
+    wanted = set(seeds or ())
+    close = [
+        e for e in episodes if e["seed"] in wanted or (not seeds and e["final_status"] != "success")
+    ]
+    fig = plt.figure(figsize=(12, 7.5))
+    grid = fig.add_gridspec(2, 4)
+    overview = fig.add_subplot(grid[:, :2])
+    _lab(overview)
+    for ep in sorted(episodes, key=lambda e: e["final_status"] != "success"):  # failures on top
+        _episode(overview, ep, close_up=False)
+    counts = {s: sum(e["final_status"] == s for e in episodes) for s in STATUS_COLOURS}
+    overview.set_title(
+        f"{data.get('env_id', '')}: {len(episodes)} episodes, "
+        + ", ".join(f"{n} {s}" for s, n in counts.items() if n),
+        fontsize=9,
+    )
+    for i, ep in enumerate(close[:CLOSE_UPS]):
+        ax = fig.add_subplot(grid[i // 2, 2 + i % 2])
+        _lab(ax)
+        _episode(ax, ep, close_up=True)
+    fig.tight_layout()
+    out = Path(out)
+    fig.savefig(out, dpi=120)
+    plt.close(fig)
+    return out
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     more = " (several: a run, then its --init-from continuations, in order)"
@@ -142,6 +224,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         "--positioning", nargs="+", help="Run directory of the positioning training" + more
     )
     parser.add_argument("--ur-eval", help="evaluation.json of the UR10 final evaluation.")
+    parser.add_argument(
+        "--mir-eval", help="evaluation.json of a MiR100 evaluation made with evaluate --paths."
+    )
+    parser.add_argument(
+        "--mir-seeds", nargs="+", type=int,
+        help=f"Episode seeds drawn one by one (default: the first {CLOSE_UPS} failures).",
+    )  # fmt: skip
     parser.add_argument("--out", default="figures", help="Output directory (default: figures).")
     args = parser.parse_args(argv)
     out = Path(args.out)
@@ -159,8 +248,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         written.append(plot_success(runs, out / "success_rate.png"))
     if args.ur_eval:
         written.append(plot_targets(args.ur_eval, out / "ur_targets.png"))
+    if args.mir_eval:
+        written.append(plot_paths(args.mir_eval, out / "mir_paths.png", args.mir_seeds))
     if not written:
-        parser.error("nothing to plot: give --navigation, --positioning and/or --ur-eval")
+        parser.error("nothing to plot: give --navigation, --positioning, --ur-eval, --mir-eval")
     print(json.dumps([str(p) for p in written]))
     return 0
 

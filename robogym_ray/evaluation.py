@@ -91,11 +91,14 @@ class EpisodeRecord:
     """The episode's target (MiR100: x, y, yaw; UR: x, y, z in base_link), if the task has one."""
     path: list[list[float]] | None = None
     """The robot's positions after reset and after each step (``--paths``), else None."""
+    obstacles: list[list[float]] | None = None
+    """With ``--paths``, the cubes the episode placed (MiR100: x, y, yaw each), if any."""
 
     def to_dict(self) -> dict[str, Any]:
         record = asdict(self)
-        if self.path is None:  # evaluation.json stays as it was without --paths
-            del record["path"]
+        for key in ("path", "obstacles"):  # evaluation.json stays as it was without --paths
+            if record[key] is None:
+                del record[key]
         return record
 
 
@@ -223,6 +226,7 @@ def run_episodes(
         filmed = videos is not None and videos.wants(i)
         frames = [env.render()] if filmed else []
         path = [_where(env)] if paths else None
+        placed = getattr(env.unwrapped, "placed_obstacles", lambda: None)() if paths else None
         ret, length, done, info = 0.0, 0, False, {}
         truncated = False
         while not done:
@@ -242,6 +246,7 @@ def run_episodes(
         yield EpisodeRecord(
             i, seed + i, status, ret, length,
             None if target is None else [float(v) for v in np.ravel(target)], path,
+            None if placed is None else np.round(placed, 4).tolist(),
         )  # fmt: skip
 
 

@@ -7,6 +7,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 NAV = "RoboGymRay/ObstacleAvoidanceMir100Sim-v0"
@@ -47,3 +48,17 @@ def test_evaluate_writes_one_video_per_requested_episode_and_paths(
     for episode in episodes:  # x, y after reset and after each step
         assert len(episode["path"]) == episode["length"] + 1
         assert all(len(xy) == 2 for xy in episode["path"])
+    for episode in episodes:  # the cubes this episode placed: x, y, yaw of each
+        assert np.asarray(episode["obstacles"]).shape == (3, 3)
+    # experiments/figures.py draws these paths over the lab, in each outcome's colour.
+    pytest.importorskip("matplotlib")
+    from PIL import Image
+
+    from tests.experiments.test_scripts import script
+
+    figure = script("figures").plot_paths(out / "evaluation.json", tmp_path / "paths.png")
+    pixels = np.asarray(Image.open(figure).convert("RGB")).reshape(-1, 3).astype(int)
+    tab = {"success": (44, 160, 44), "collision": (214, 39, 40),
+           "max_steps_exceeded": (255, 127, 14)}  # fmt: skip
+    for status in {e["final_status"] for e in episodes}:
+        assert (np.abs(pixels - tab[status]).sum(axis=1) < 30).sum() > 50, status

@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import io
 import time
 from collections.abc import Mapping
 from pathlib import Path
 
+from PIL import Image
+from tensorboard.compat.proto.summary_pb2 import Summary
 from torch.utils.tensorboard import SummaryWriter
 from tqdm import tqdm
 
@@ -20,6 +23,15 @@ class RunLogger:
 
     def scalar(self, tag: str, value: float, step: int) -> None:
         self.writer.add_scalar(tag, value, step)
+
+    def gif(self, tag: str, data: bytes, step: int) -> None:
+        """An animated GIF as an image summary: TensorBoard's image tab plays it."""
+        width, height = Image.open(io.BytesIO(data)).size
+        image = Summary.Image(height=height, width=width, colorspace=3, encoded_image_string=data)
+        # add_image would re-encode one frame as PNG; torch's own add_video does this same call.
+        self.writer._get_file_writer().add_summary(
+            Summary(value=[Summary.Value(tag=tag, image=image)]), step
+        )
 
     def advance(self, steps: int) -> None:
         self.bar.update(steps)

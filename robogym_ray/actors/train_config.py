@@ -81,6 +81,9 @@ class TrainConfig:
     """Seconds from the start of one evaluator call to the start of the next (0 = back to
     back). On 2 cores a back-to-back evaluator costs the learner 15-20 percent of its steps
     (docs/benchmarks.md); an interval bounds that share."""
+    video_interval_s: float = 300.0
+    """Every this many seconds the evaluator films one greedy episode (320x240, drawn from
+    the robot state) into TensorBoard's eval/video, as an animated GIF. 0 = no video."""
     select_episodes: int = 0
     """Snapshot selection: when > 0 the evaluator scores each weights snapshot on the same
     this-many greedy episodes, and the best-scoring one (success rate, then mean return) is
@@ -128,6 +131,7 @@ class TrainConfig:
             (self.steps_per_call >= 1, "steps_per_call", ">= 1"),
             (self.select_episodes >= 0, "select_episodes", ">= 0"),
             (self.eval_interval_s >= 0, "eval_interval_s", ">= 0"),
+            (self.video_interval_s >= 0, "video_interval_s", ">= 0"),
             (self.evaluator or not self.select_episodes, "select_episodes", "0 without evaluator"),
             (self.weight_sync_steps >= 1, "weight_sync_steps", ">= 1"),
             (self.sigma_min >= 0, "sigma_min", ">= 0"),

@@ -25,7 +25,7 @@ from ray.exceptions import RayActorError
 
 from robogym_ray.actors import remote
 from robogym_ray.actors import training_setup as setup
-from robogym_ray.actors.evaluator import status_rates
+from robogym_ray.actors.evaluator import VIDEO_KEY, status_rates
 from robogym_ray.actors.real_client import RealRobotClientFactory
 from robogym_ray.actors.rollout import RolloutResult, box_dims, make_gym_env
 from robogym_ray.actors.run_stats import RunStats, WorkerSlot
@@ -98,8 +98,12 @@ class TrainingRun:
         self.first_learner_step = ray.get(self.learner.status.remote())["version"]
         self.workers = self._start_workers()
         if cfg.evaluator:
+            kwargs = self._env_kwargs(10_000) | setup.evaluator_env_kwargs(cfg, preset.env_id)
             self.evaluator = remote.EvaluatorActor.options(num_cpus=cfg.evaluator_cpus).remote(
-                make_gym_env(preset.env_id, self._env_kwargs(10_000)), d4pg, seed=cfg.seed + 10_000
+                make_gym_env(preset.env_id, kwargs),
+                d4pg,
+                seed=cfg.seed + 10_000,
+                video_every_s=cfg.video_interval_s,
             )
         self.weights_ref = self.learner.get_weights.remote()
         self._weights_stale = False
@@ -190,7 +194,7 @@ class TrainingRun:
             )
             if self.stats.env_steps + in_flight < cfg.total_steps and not out_of_time:
                 pending[self._collect(slot)] = slot
-            eval_ref = self._poll_eval(eval_ref)
+            eval_ref = self._poll_eval(eval_ref, logger)
             if logger.due(cfg.log_every_s):  # scalars cost a supervisor round trip
                 logger.write(self._scalars(start), self.stats.env_steps)
         self._drain_learner(learner_calls, block=True, all_=True)
@@ -259,7 +263,7 @@ class TrainingRun:
             return self.evaluator.evaluate.remote(self._eval_weights_ref, n, base)
         return self.evaluator.evaluate.remote(self._eval_weights_ref)
 
-    def _poll_eval(self, ref: Any) -> Any:
+    def _poll_eval(self, ref: Any, logger: Any) -> Any:
         if ref is None:  # between two calls (eval_interval_s), or the evaluator is gone
             due = self.evaluator is not None and time.perf_counter() >= self._next_eval_at
             return self._start_eval() if due else None
@@ -267,6 +271,8 @@ class TrainingRun:
             return ref
         try:
             self.stats.eval = ray.get(ref)
+            if (gif := self.stats.eval.pop(VIDEO_KEY, None)) is not None:
+                logger.gif("eval/video", gif, self.stats.env_steps)
             self.stats.eval_history.append(
                 {
                     "wall_s": round(time.perf_counter() - self.started, 2),
@@ -284,7 +290,7 @@ class TrainingRun:
             log.warning("evaluator failed; evaluation stops")
             self.evaluator = None
             return None
-        return self._poll_eval(None)
+        return self._poll_eval(None, logger)
 
     def _scalars(self, start: float) -> dict[str, float]:
         s, wall = self.stats, max(1e-9, time.perf_counter() - start)

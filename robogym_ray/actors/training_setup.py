@@ -194,3 +194,12 @@ def seed_checkpoint(
         shutil.copy2(replay, Path(f"{target}{REPLAY_SUFFIX}"))
     log.info("continuing from %s (step %d)", source, int(state["num_steps"]))
     return True
+
+
+def evaluator_env_kwargs(cfg: TrainConfig, env_id: str) -> dict[str, Any]:
+    """What the evaluator's env needs beyond a worker's: frames for eval/video (our envs only)."""
+    if cfg.video_interval_s <= 0 or not env_id.startswith("RoboGymRay/"):
+        return {}
+    from robogym_ray.envs.render import RenderConfig
+
+    return {"render_mode": "rgb_array", "render_config": RenderConfig(width=320, height=240)}

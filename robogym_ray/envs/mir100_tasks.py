@@ -76,8 +76,14 @@ class _Mir100Task(RobotServerEnv):
     def _sample_target(self, start: np.ndarray) -> np.ndarray:
         raise NotImplementedError
 
+    def placed_obstacles(self) -> np.ndarray | None:
+        """The cubes this episode's SetState placed, one (x, y, yaw) row each; None when the
+        task has none, or on a real robot (its cubes are where they stand)."""
+        return None
+
     def _obstacle_vector(self) -> np.ndarray:
-        return np.zeros(9)
+        placed = self.placed_obstacles()
+        return np.zeros(9) if placed is None else placed.ravel()
 
     # -- frames ----------------------------------------------------------------------------
     def _position(self, msg: pb.State) -> np.ndarray:
@@ -287,8 +293,8 @@ class ObstacleAvoidanceMir100(_Mir100Task):
         xs = [rng.uniform(-2.4, -1.5), rng.uniform(-0.5, 0.5), rng.uniform(1.5, 2.4)]
         return np.array([[x, rng.uniform(-1.0, 1.0), rng.uniform(-np.pi, np.pi)] for x in xs])
 
-    def _obstacle_vector(self) -> np.ndarray:
-        return np.zeros(9) if self.real_robot else self.obstacles.ravel()
+    def placed_obstacles(self) -> np.ndarray | None:
+        return None if self.real_robot else self.obstacles
 
     def _to_obs(self, msg: pb.State) -> np.ndarray:
         lasers = np.asarray(msg.state[LASER], dtype=np.float32)[LASER_OFFSETS]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import io
 import os
 import signal
 import threading
@@ -53,6 +54,15 @@ def scalar_tags(run_dir: str) -> set[str]:
     return set(acc.Tags()["scalars"])
 
 
+def eval_video(run_dir: str) -> Any:
+    """The first eval/video image event (an animated GIF)."""
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    acc = EventAccumulator(run_dir, size_guidance={"images": 0})
+    acc.Reload()
+    return acc.Images("eval/video")[0]
+
+
 def test_navigation_run_completes_with_tensorboard_scalars(tmp_path: Path) -> None:
     cfg = TrainConfig(
         task=NAV,
@@ -74,6 +84,13 @@ def test_navigation_run_completes_with_tensorboard_scalars(tmp_path: Path) -> No
     tags = scalar_tags(str(tmp_path / "nav"))
     assert tags >= EXPECTED_TAGS, EXPECTED_TAGS - tags
     assert (tmp_path / "nav" / "summary.json").exists()
+    # The first evaluation is filmed (video_interval_s defaults to 300 s): an animated GIF.
+    from PIL import Image
+
+    video = eval_video(str(tmp_path / "nav"))
+    gif = Image.open(io.BytesIO(video.encoded_image_string))
+    assert gif.format == "GIF" and gif.size == (320, 240) == (video.width, video.height)
+    assert gif.n_frames > 2
 
 
 def _kill_when(condition: Any, pid_of: Any, done: threading.Event, log: list[str]) -> None:

@@ -28,7 +28,8 @@ MAX_RANGE = 29.0
 """Ranges at or past this are 'nothing hit' and are not drawn."""
 
 
-def _box(centre: Sequence[float], half: Sequence[float], yaw: float) -> np.ndarray:
+def box_corners(centre: Sequence[float], half: Sequence[float], yaw: float) -> np.ndarray:
+    """The four (x, y) corners of a rectangle with half sides ``half``, turned by ``yaw``."""
     c, s = np.cos(yaw), np.sin(yaw)
     corners = np.array([[1, 1], [1, -1], [-1, -1], [-1, 1]], float) * np.asarray(half, float)
     return np.asarray(centre[:2], float) + corners @ np.array([[c, s], [-s, c]])
@@ -78,11 +79,13 @@ def draw_mir100(
     canvas = Canvas(cfg)
     if walls:
         for _, (cx, cy), half in LAB_WALLS:
-            canvas.polygon(to_px(_box((LAB_ORIGIN[0] + cx, LAB_ORIGIN[1] + cy), half, 0.0)), WALL)
+            canvas.polygon(
+                to_px(box_corners((LAB_ORIGIN[0] + cx, LAB_ORIGIN[1] + cy), half, 0.0)), WALL
+            )
     cubes = np.asarray(s[1021:1030] if obstacles is None else obstacles, float).reshape(-1, 3)
     if np.any(cubes != 0.0):  # robo-gym's Real env sends all-zero poses: nothing known to draw
         for x, y, yaw in cubes:
-            canvas.polygon(to_px(_box((x, y), (CUBE_SIZE / 2,) * 2, yaw)), CUBE)
+            canvas.polygon(to_px(box_corners((x, y), (CUBE_SIZE / 2,) * 2, yaw)), CUBE)
     target = to_px(s[0:2])[0]
     canvas.disc(target, SUCCESS_RADIUS * to_px.scale, (200, 235, 200))
     canvas.disc(target, max(3.0, 0.06 * to_px.scale), TARGET)
@@ -90,7 +93,7 @@ def draw_mir100(
         canvas.line(to_px(np.asarray(path)[:, :2]), PATH, width=2)
     pose = s[3:6]
     half = (FOOTPRINT[0] / 2, FOOTPRINT[1] / 2)
-    body = _to_world(pose, _box(FOOTPRINT_OFFSET[:2], half, 0.0))
+    body = _to_world(pose, box_corners(FOOTPRINT_OFFSET[:2], half, 0.0))
     canvas.polygon(to_px(body), ROBOT)
     nose = _to_world(pose, np.array([[0.0, 0.0], [FOOTPRINT[0] / 2 + 0.1, 0.0]]))
     canvas.line(to_px(nose), HEADING, width=max(2, int(0.06 * to_px.scale)))
