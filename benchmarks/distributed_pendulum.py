@@ -17,8 +17,8 @@ import time
 
 import numpy as np
 
-from robogym_ray.actors.train_config import TrainConfig
-from robogym_ray.actors.training import run_training
+from robogym_ray.training.config import TrainConfig
+from robogym_ray.training.run import run_training
 
 THRESHOLD = -200.0
 

@@ -21,10 +21,10 @@ import time
 
 import numpy as np
 
-from robogym_ray.actors.learner_service import LearnerService
-from robogym_ray.actors.revisits import FailedStartRevisits
-from robogym_ray.actors.rollout import RolloutWorker, box_dims, make_gym_env
-from robogym_ray.actors.tasks import d4pg_for, resolve_task
+from robogym_ray.learner.service import LearnerService
+from robogym_ray.experience.revisits import FailedStartRevisits
+from robogym_ray.experience.rollout import RolloutWorker, box_dims, make_gym_env
+from robogym_ray.training.presets import d4pg_for, resolve_task
 
 
 def rate(worker: RolloutWorker, steps: int) -> tuple[float, int, int]:

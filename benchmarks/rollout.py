@@ -18,12 +18,12 @@ import time
 import numpy as np
 import ray
 
-from robogym_ray.actors import remote
-from robogym_ray.actors.learner_service import LearnerService
-from robogym_ray.actors.provider import SupervisorServerProvider
-from robogym_ray.actors.rollout import box_dims, make_gym_env
-from robogym_ray.actors.supervisor import SupervisorConfig
-from robogym_ray.actors.tasks import d4pg_for, resolve_task
+from robogym_ray.distributed import remote
+from robogym_ray.learner.service import LearnerService
+from robogym_ray.distributed.provider import SupervisorServerProvider
+from robogym_ray.experience.rollout import box_dims, make_gym_env
+from robogym_ray.supervision.supervisor import SupervisorConfig
+from robogym_ray.training.presets import d4pg_for, resolve_task
 
 
 def measure(workers: list, steps: int) -> float:

@@ -29,9 +29,9 @@ import tempfile
 from dataclasses import replace
 from typing import Any
 
-from robogym_ray.actors.train_cmd import read_sections
-from robogym_ray.actors.train_config import TrainConfig
-from robogym_ray.actors.training import run_training
+from robogym_ray.training.command import read_sections
+from robogym_ray.training.config import TrainConfig
+from robogym_ray.training.run import run_training
 from robogym_ray.config import merge_config
 
 VARIANTS: dict[str, dict[str, Any]] = {

@@ -17,9 +17,9 @@ from robogym_ray.errors import RoboGymRayError
 
 COMMANDS: dict[str, tuple[str, str]] = {
     "serve": ("robogym_ray.robots.serve", "Start a standalone robot server (robo-gym protocol)."),
-    "manager": ("robogym_ray.actors.manager", "Serve robo-gym's server manager (supervised)."),
-    "resume": ("robogym_ray.actors.resume", "Resume a paused real robot (operator)."),
-    "train": ("robogym_ray.actors.train_cmd", "Train D4PG with rollout workers on Ray."),
+    "manager": ("robogym_ray.distributed.manager", "Serve robo-gym's server manager (supervised)."),
+    "resume": ("robogym_ray.distributed.resume", "Resume a paused real robot (operator)."),
+    "train": ("robogym_ray.training.command", "Train D4PG with rollout workers on Ray."),
     "evaluate": ("robogym_ray.evaluation", "Evaluate a policy for N episodes (success rates)."),
     "export": ("robogym_ray.export", "Export a checkpoint's policy as TorchScript + JSON."),
     "run-policy": ("robogym_ray.run_policy", "Drive a robot server with an exported policy."),

@@ -260,9 +260,9 @@ def real_robot_actor(env_id: str, address: str, token: str | None) -> Iterator[A
     """A real-robot actor on ``address`` (on a new local Ray if none); yields a client factory."""
     import ray
 
-    from robogym_ray.actors import remote
-    from robogym_ray.actors.real_client import RealRobotClientFactory
-    from robogym_ray.actors.tasks import safety_for
+    from robogym_ray.distributed import remote
+    from robogym_ray.distributed.real_client import RealRobotClientFactory
+    from robogym_ray.training.presets import safety_for
 
     started = not ray.is_initialized()
     if started:

@@ -103,7 +103,7 @@ def env_id_of_run(checkpoint: str | Path) -> str | None:
         task = json.loads(config.read_text())["train"]["task"]
     except (OSError, ValueError, KeyError, TypeError):
         return None
-    from robogym_ray.actors.tasks import resolve_task
+    from robogym_ray.training.presets import resolve_task
 
     try:
         return resolve_task(task).env_id

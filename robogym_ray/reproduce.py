@@ -56,8 +56,8 @@ def build_parser(default_config: Path, description: str) -> argparse.ArgumentPar
 
 def experiment_configs(args: argparse.Namespace) -> tuple[Any, dict[str, Any], Any]:
     """``(TrainConfig, d4pg overrides, EmulationConfig)``: file <- ``--smoke`` <- flags."""
-    from robogym_ray.actors.train_cmd import read_sections
-    from robogym_ray.actors.train_config import TrainConfig
+    from robogym_ray.training.command import read_sections
+    from robogym_ray.training.config import TrainConfig
     from robogym_ray.config import merge_config
     from robogym_ray.robots.emulation import EmulationConfig
 
@@ -85,8 +85,8 @@ def train_main(
     default_config: Path, argv: Sequence[str] | None = None, description: str = ""
 ) -> dict[str, Any]:
     """Parse the flags, train, print and return the run summary."""
-    from robogym_ray.actors.tasks import resolve_task
-    from robogym_ray.actors.training import run_training
+    from robogym_ray.training.presets import resolve_task
+    from robogym_ray.training.run import run_training
 
     args = build_parser(default_config, description).parse_args(argv)
     cfg, d4pg, emulation = experiment_configs(args)

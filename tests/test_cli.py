@@ -80,7 +80,7 @@ def test_train_rejects_bad_emulation_settings_before_starting_ray(tmp_path: Path
 def test_train_merges_emulation_from_config_file_and_flags(tmp_path: Path) -> None:
     import argparse
 
-    from robogym_ray.actors import train_cmd
+    from robogym_ray.training import command as train_cmd
 
     path = tmp_path / "dr.json"
     path.write_text(
@@ -102,7 +102,7 @@ def test_train_merges_emulation_from_config_file_and_flags(tmp_path: Path) -> No
 
 
 def test_a_config_extends_another_field_by_field(tmp_path: Path) -> None:
-    from robogym_ray.actors.train_cmd import read_sections
+    from robogym_ray.training.command import read_sections
     from robogym_ray.errors import ConfigError
 
     (tmp_path / "base.json").write_text(
@@ -138,7 +138,7 @@ def test_a_config_extends_another_field_by_field(tmp_path: Path) -> None:
 def test_train_prints_a_short_summary_and_json_on_request() -> None:
     import argparse
 
-    from robogym_ray.actors import train_cmd
+    from robogym_ray.training import command as train_cmd
 
     committed = Path("docs/results/navigation-sectors-average-100min/training-summary.json")
     summary = json.loads(committed.read_text())

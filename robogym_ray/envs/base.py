@@ -36,7 +36,7 @@ from typing import Any, ClassVar
 import gymnasium as gym
 import numpy as np
 
-from robogym_ray.envs.client import Deadlines, RobotServerClient, check_action
+from robogym_ray.protocol.client import Deadlines, RobotServerClient, check_action
 from robogym_ray.envs.render import HumanWindow, RenderConfig, check_display
 from robogym_ray.envs.servers import (
     ServerLease,

@@ -14,7 +14,7 @@ import numpy as np
 from gymnasium import spaces
 
 from robogym_ray.envs.base import RobotServerEnv, StepInfo, polar_2d
-from robogym_ray.envs.client import RobotServerClient
+from robogym_ray.protocol.client import RobotServerClient
 from robogym_ray.envs.render import RenderConfig
 from robogym_ray.envs.render.mir100 import draw_mir100
 from robogym_ray.errors import InvalidStateError

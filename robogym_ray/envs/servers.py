@@ -144,7 +144,7 @@ def default_provider() -> ServerProvider:
     """
     ray = sys.modules.get("ray")
     if ray is not None and ray.is_initialized():
-        from robogym_ray.actors.provider import supervisor_provider_if_running
+        from robogym_ray.distributed.provider import supervisor_provider_if_running
 
         supervised = supervisor_provider_if_running()
         if supervised is not None:

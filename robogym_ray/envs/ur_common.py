@@ -16,7 +16,7 @@ from gymnasium import spaces
 from scipy.spatial.transform import Rotation
 
 from robogym_ray.envs.base import RobotServerEnv
-from robogym_ray.envs.client import RobotServerClient
+from robogym_ray.protocol.client import RobotServerClient
 from robogym_ray.envs.render import RenderConfig
 from robogym_ray.envs.render.ur import draw_ur
 from robogym_ray.errors import ConfigError, InvalidStateError

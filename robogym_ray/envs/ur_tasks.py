@@ -11,7 +11,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from robogym_ray.envs.base import StepInfo
-from robogym_ray.envs.client import RobotServerClient
+from robogym_ray.protocol.client import RobotServerClient
 from robogym_ray.envs.ur_common import (
     JOINT_MAX,
     URModel,

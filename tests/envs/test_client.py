@@ -9,7 +9,7 @@ import grpc
 import numpy as np
 import pytest
 
-from robogym_ray.envs.client import Deadlines, RobotServerClient, check_action
+from robogym_ray.protocol.client import Deadlines, RobotServerClient, check_action
 from robogym_ray.errors import InvalidActionError, RobotServerError
 from robogym_ray.protocol import robot_server_pb2 as pb
 from tests.envs.conftest import success_for

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import robogym_ray  # noqa: F401
-from robogym_ray.envs.client import Deadlines
+from robogym_ray.protocol.client import Deadlines
 from robogym_ray.envs.mir100_tasks import NoObstacleNavigationMir100, ObstacleAvoidanceMir100
 from robogym_ray.envs.servers import EmbeddedLease, EmbeddedServerProvider, ServerProvider
 from robogym_ray.envs.ur_tasks import EmptyEnvironmentUR

@@ -70,7 +70,7 @@ def test_nan_between_robo_gyms_beams_is_refused():
 
 
 def test_short_name_trains_it_like_navigation():
-    from robogym_ray.actors.tasks import d4pg_for, resolve_task
+    from robogym_ray.training.presets import d4pg_for, resolve_task
 
     preset = resolve_task("navigation-sectors")
     assert preset.env_id == SECTORS and gym.spec(SECTORS) is not None

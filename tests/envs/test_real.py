@@ -6,7 +6,7 @@ import gymnasium as gym
 import numpy as np
 
 import robogym_ray  # noqa: F401
-from robogym_ray.envs.client import RobotServerClient
+from robogym_ray.protocol.client import RobotServerClient
 
 
 def test_mir_rob_env_end_to_end(serve_subprocess):

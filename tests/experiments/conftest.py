@@ -1,4 +1,4 @@
-"""Fixtures of the experiment tests: the session's local Ray (shared with tests/actors)."""
+"""Fixtures of the experiment tests: the session's local Ray (shared with tests/distributed)."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import pytest
 
 from robogym_ray.learner.config import D4PGConfig
 from robogym_ray.learner.learner import D4PGLearner
-from tests.actors.conftest import ray_cluster  # noqa: F401
+from tests.distributed.conftest import ray_cluster  # noqa: F401
 
 POSITIONING = "RoboGymRay/EndEffectorPositioningUR10Sim-v0"
 NAVIGATION = "RoboGymRay/ObstacleAvoidanceMir100Sim-v0"

@@ -53,7 +53,7 @@ def test_configs_load_and_flags_override_them(name: str) -> None:
     assert (train.sigma_final_scale < 1 and train.sigma_decay_steps > 0) == name.endswith("-quiet")
     assert (train.revisit_failed > 0) == name.endswith("-revisit")
     assert ("Sectors" in train.task) == ("-sectors" in name)
-    from robogym_ray.actors.tasks import d4pg_for, resolve_task
+    from robogym_ray.training.presets import d4pg_for, resolve_task
 
     d4pg_for(resolve_task(train.task), d4pg)  # every key is a D4PGConfig field
 

@@ -1,0 +1,89 @@
+"""A robot-server client that goes through a real-robot actor (safety filter, pause/resume).
+
+A rollout worker's Real env uses it in place of a direct gRPC client, so every command to the
+hardware passes the actor's safety filter and nothing reaches a paused robot. It offers the
+methods of ``robogym_ray.protocol.client.RobotServerClient`` that the envs call.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import ray
+from ray.exceptions import RayActorError, RayTaskError
+
+from robogym_ray.errors import RobotServerError
+from robogym_ray.protocol import robot_server_pb2 as pb
+
+
+def dict_to_state(data: dict[str, Any]) -> pb.State:
+    return pb.State(
+        state=data.get("state", []),
+        state_dict=data.get("state_dict", {}),
+        float_params=data.get("float_params", {}),
+        string_params=data.get("string_params", {}),
+        success=True,
+    )
+
+
+class RealRobotClient:
+    """``RobotServerClient``-compatible calls on the named real-robot actor."""
+
+    def __init__(self, actor: Any, address: str) -> None:
+        self.actor = actor
+        self.address = address
+
+    def _call(self, method: str, *args: Any) -> Any:
+        try:
+            return ray.get(getattr(self.actor, method).remote(*args))
+        except RayTaskError as exc:
+            cause = exc.as_instanceof_cause()
+            if isinstance(cause, RobotServerError):
+                raise cause from None
+            raise RobotServerError(
+                f"{method} failed: {cause}", address=self.address, cause="rpc"
+            ) from None
+        except RayActorError as exc:
+            raise RobotServerError(
+                f"real-robot actor is gone: {exc}", address=self.address, cause="connection"
+            ) from None
+
+    def get_state(self) -> pb.State:
+        return dict_to_state(self._call("get_state"))
+
+    def set_state(self, msg: pb.State) -> None:
+        self._call(
+            "set_state",
+            list(msg.state),
+            dict(msg.state_dict),
+            dict(msg.float_params),
+            dict(msg.string_params),
+        )
+
+    def send_action(self, action: Sequence[float] | np.ndarray) -> None:
+        self._call("send_action", np.asarray(action, dtype=np.float64).tolist())
+
+    def send_action_get_state(self, action: Sequence[float] | np.ndarray) -> pb.State:
+        return dict_to_state(
+            self._call("send_action_get_state", np.asarray(action, dtype=np.float64).tolist())
+        )
+
+    def is_paused(self) -> bool:
+        return bool(ray.get(self.actor.status.remote()).get("paused", False))
+
+    def close(self) -> None:
+        """The actor outlives the env (it belongs to the run)."""
+
+
+@dataclass(frozen=True)
+class RealRobotClientFactory:
+    """Picklable: builds a ``RealRobotClient`` on the named actor inside the worker."""
+
+    actor_name: str
+    namespace: str = "robogym-ray"
+
+    def __call__(self, address: str, **_: Any) -> RealRobotClient:
+        return RealRobotClient(ray.get_actor(self.actor_name, namespace=self.namespace), address)

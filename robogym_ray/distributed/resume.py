@@ -1,0 +1,38 @@
+"""``robogym-ray resume NAME``: an operator resumes a paused real robot on the running cluster."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("name", help="The real robot's name (its actor's name).")
+    parser.add_argument(
+        "--ray-address", default="auto", help="Ray cluster to connect to (default: auto)."
+    )
+    parser.add_argument(
+        "--status", action="store_true", help="Only print the robot's status; do not resume."
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    import ray  # lazy: `robogym-ray --help` must not import Ray
+
+    from robogym_ray.distributed.remote import NAMESPACE, get_real_robot
+
+    ray.init(address=args.ray_address, namespace=NAMESPACE, logging_level="ERROR")
+    try:
+        robot = get_real_robot(args.name)
+    except ValueError:
+        print(f"error: no real robot named {args.name!r} in namespace {NAMESPACE}", file=sys.stderr)
+        return 2
+    method = robot.status if args.status else robot.resume
+    try:
+        status = ray.get(method.remote())
+    except Exception as exc:  # noqa: BLE001 - a failed health check keeps the robot paused
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
+    state = "paused" if status["paused"] else "running"
+    print(f"{status['name']} at {status['address']}: {state} {status['reason']}".rstrip())
+    return 0

@@ -1,0 +1,136 @@
+"""``robogym-ray train``: distributed D4PG on local Ray or a cluster."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from dataclasses import dataclass, fields
+from pathlib import Path
+from typing import Any
+
+from robogym_ray.training.config import TrainConfig
+from robogym_ray.config import add_config_args, merge_config
+from robogym_ray.errors import ConfigError
+from robogym_ray.robots.emulation import EmulationConfig
+
+SECTIONS = ("train", "d4pg", "emulation")
+"""Keys a config file may hold: TrainConfig, D4PGConfig and (for --emulated-workers)
+EmulationConfig fields."""
+
+
+@dataclass(frozen=True)
+class TrainSetup:
+    """Everything ``robogym-ray train`` was asked for."""
+
+    train: TrainConfig
+    d4pg: dict[str, Any]
+    """D4PGConfig overrides on top of the task's preset."""
+    emulation: EmulationConfig
+    """What the emulated workers' robots differ by (used when train.emulated_workers > 0)."""
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    # Only flags given on the command line override the config file.
+    add_config_args(parser, TrainConfig, only_given=True)
+    add_config_args(parser, EmulationConfig, prefix="emu-", only_given=True)
+    parser.add_argument(
+        "--json",
+        action="store_true",
+        help="print the run's summary as one JSON line (it is always in RUN_DIR/summary.json)",
+    )
+
+
+def _given(args: argparse.Namespace, cls: type) -> dict[str, Any]:
+    given = {f.name: getattr(args, f.name) for f in fields(cls) if hasattr(args, f.name)}
+    return {k: tuple(v) if isinstance(v, list) else v for k, v in given.items()}
+
+
+def read_sections(path: str | Path, _chain: tuple[Path, ...] = ()) -> dict[str, dict[str, Any]]:
+    """The sections of a config file ({"train": {...}, "d4pg": {...}, "emulation": {...}}).
+
+    A file may name another with ``"extends": "base.json"`` (a path relative to the file): it
+    starts from the base's sections and overrides them field by field, so a variant of a recipe
+    holds only what it changes and the two cannot drift apart unnoticed.
+    """
+    path = Path(path)
+    chain = (*_chain, path.resolve())
+    if chain[-1] in _chain:
+        raise ConfigError(f"{path}: 'extends' forms a cycle: {' -> '.join(map(str, chain))}")
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, ValueError) as exc:
+        raise ConfigError(f"cannot read config file {path}: {exc}") from None
+    if not isinstance(data, dict) or set(data) - {*SECTIONS, "extends"}:
+        raise ConfigError(
+            f"{path}: expected a JSON object with keys among {', '.join(SECTIONS)} and 'extends'"
+        )
+    for name, section in data.items():
+        if name != "extends" and not isinstance(section, dict):
+            raise ConfigError(f"{path}: section {name!r} must be a JSON object")
+    base: dict[str, dict[str, Any]] = {name: {} for name in SECTIONS}
+    if "extends" in data:
+        parent = data["extends"]
+        if not isinstance(parent, str) or not parent:
+            raise ConfigError(f"{path}: 'extends' must be a config file name, got {parent!r}")
+        try:
+            base = read_sections(path.parent / parent, chain)
+        except ConfigError as exc:
+            raise ConfigError(f"{path} extends {parent}: {exc}") from None
+    return {name: {**base[name], **data.get(name, {})} for name in SECTIONS}
+
+
+def build_config(args: argparse.Namespace) -> TrainSetup:
+    train, emu = _given(args, TrainConfig), _given(args, EmulationConfig)
+    source = train.get("config") or "command line"
+    data = read_sections(source) if train.get("config") else {}
+    return TrainSetup(
+        train=merge_config(TrainConfig, {**data.get("train", {}), **train}, source=source),
+        d4pg=dict(data.get("d4pg", {})),
+        emulation=merge_config(EmulationConfig, {**data.get("emulation", {}), **emu}, source),
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    from robogym_ray.training.presets import resolve_task
+    from robogym_ray.training.run import run_training
+
+    setup = build_config(args)
+    resolve_task(setup.train.task)  # fail fast, before Ray starts, on a bad task name
+    summary = run_training(setup.train, setup.d4pg, setup.emulation)
+    print(json.dumps(summary) if args.json else summary_text(summary), flush=True)
+    return 0
+
+
+def _rates(summary: dict[str, Any], prefix: str) -> str:
+    return "  ".join(
+        f"{name} {100 * summary[f'{prefix}/{name}_rate']:.1f} %"
+        for name in ("success", "collision", "timeout")
+    )
+
+
+def summary_text(summary: dict[str, Any]) -> str:
+    """A few lines for a person: what was trained, how it went, where its files are."""
+    logdir = Path(summary["logdir"])
+    lines = [
+        f"Trained {summary['task']}: {summary['env_steps']:,} env steps, "
+        f"{summary['episodes']:,} episodes, {summary['learner_steps']:,} learner steps "
+        f"in {summary['wall_s']:.1f} s."
+    ]
+    if "train/success_rate" in summary:
+        # Over the last 100 episodes that were not revisits (RunStats), fewer in a short run.
+        counted = min(100, summary["episodes"] - summary.get("revisited_episodes", 0))
+        lines.append(f"  training episodes (last {counted}): {_rates(summary, 'train')}")
+    if "eval/success_rate" in summary:
+        # The evaluator's rates are over its last 100 episodes (Evaluator's window).
+        total = int(summary.get("eval/episodes", 0))
+        last = f"last {min(100, total)} of {total}"
+        lines.append(f"  greedy evaluation ({last} episodes): {_rates(summary, 'eval')}")
+    restarts = sum(summary["restarts"].values())
+    lines += [
+        f"  faults: {restarts} server restarts, {summary['dropped_steps']} dropped steps, "
+        f"{summary['robot_errors']} robot errors",
+        f"  checkpoint:  {summary['checkpoint']}",
+        f"  TensorBoard: tensorboard --logdir {logdir}",
+        f"  summary:     {logdir / 'summary.json'} (or pass --json)",
+    ]
+    return "\n".join(lines)

@@ -1,0 +1,154 @@
+"""``TrainConfig``: what ``robogym-ray train`` runs (D4PG hyperparameters are separate)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from robogym_ray.errors import ConfigError
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """One distributed D4PG run."""
+
+    task: str = "navigation"
+    """Env id (e.g. RoboGymRay/ObstacleAvoidanceMir100Sim-v0) or short name: navigation,
+    navigation-sectors, positioning, pendulum."""
+    workers: int = 2
+    """Simulated rollout workers (each with its own robot server)."""
+    emulated_workers: int = 0
+    """How many of the simulated workers train on emulated robots (sensor noise, actuation
+    latency, dynamics differences: the --emu-* settings or the config file's "emulation"
+    section) instead of the plain simulation - domain randomisation for policies meant for
+    real hardware. The first N workers (the most exploratory) get them; the evaluator stays on
+    the plain simulation."""
+    real_robot: tuple[str, ...] = ()
+    """HOST:PORT of real robot servers; each adds a rollout worker on the task's Rob variant."""
+    total_steps: int = 3000
+    """Env steps to collect over all workers."""
+    max_wall_s: float | None = None
+    """Stop collecting after this many seconds of training, even before total_steps."""
+    logdir: str = "runs"
+    """TensorBoard root; each run writes to LOGDIR/RUN_NAME."""
+    run_name: str | None = None
+    """Run directory name (default: task and time)."""
+    seed: int = 0
+    """Seed of worker i is seed + i; the learner uses seed."""
+    address: str | None = None
+    """Ray address: None starts a local Ray (embedded); 'auto' joins a running cluster."""
+    config: str | None = None
+    """JSON file {"train": {...}, "d4pg": {...}, "emulation": {...}}, optionally "extends":
+    "base.json" (its fields override the base's); command-line flags win over its train part."""
+    num_cpus: float | None = None
+    """CPUs of the embedded local Ray (default: all of this machine)."""
+    steps_per_call: int = 50
+    """Env steps a worker runs per round trip to the driver."""
+    weight_sync_steps: int = 200
+    """A worker pulls new weights after this many of its own env steps."""
+    random_steps: int = 500
+    """Each worker's first env steps use uniform random actions."""
+    sigma_min: float = 0.1
+    """Exploration noise of the last worker; worker sigmas spread from d4pg.sigma down to it."""
+    sigma_decay_start: int = 0
+    """Env steps (all workers together, counted from this run's start: an --init-from run starts
+    again at 0) after which every worker's exploration noise starts to shrink, when
+    sigma_decay_steps > 0."""
+    sigma_decay_steps: int = 0
+    """Env steps over which each worker's sigma falls linearly to sigma_final_scale times its
+    start (the spread between workers is kept); 0 = constant noise. Late in a run the replay
+    then holds more of the states the greedy policy visits."""
+    sigma_final_scale: float = 1.0
+    """Fraction of each worker's sigma left once the decay is over, in [0, 1]."""
+    revisit_failed: float = 0.0
+    """Chance, in [0, 1], that a simulated worker's reset re-runs the start (same reset seed:
+    same start, goal and obstacles) of an episode it failed recently; 0 = off. See
+    robogym_ray/experience/revisits.py."""
+    revisit_pool: int = 64
+    """Failed starts each worker keeps for revisits (the oldest is forgotten first)."""
+    revisit_max: int = 2
+    """Times one failed start is re-run at most (a revisit that succeeds retires it at once)."""
+    checkpoint_every: int = 500
+    """Learner steps between checkpoints (a restarted learner resumes from the latest)."""
+    init_from: str | None = None
+    """learner.pt of an earlier run to continue from (networks, optimisers, step count, and its
+    replay when LEARNER.pt.replay.npz lies beside it); ignored when this run's directory already
+    has a checkpoint, which is newer."""
+    save_replay: bool = False
+    """Write the replay buffer beside the final checkpoint, for a later --init-from."""
+    evaluator: bool = True
+    """Run an evaluator actor with the greedy policy on its own env."""
+    eval_interval_s: float = 0.0
+    """Seconds from the start of one evaluator call to the start of the next (0 = back to
+    back). On 2 cores a back-to-back evaluator costs the learner 15-20 percent of its steps
+    (docs/benchmarks.md); an interval bounds that share."""
+    video_interval_s: float = 300.0
+    """Every this many seconds the evaluator films one greedy episode (320x240, drawn from
+    the robot state) into TensorBoard's eval/video, as an animated GIF. 0 = no video."""
+    select_episodes: int = 0
+    """Snapshot selection: when > 0 the evaluator scores each weights snapshot on the same
+    this-many greedy episodes, and the best-scoring one (success rate, then mean return) is
+    kept as checkpoints/policy-best.pt (policy only; evaluate and export take it). The
+    learner's own final state can be a worse draw: a greedy policy's success rate swings by a
+    few points from one snapshot to the next. 0 = one new episode per snapshot, no selection."""
+    worker_cpus: float = 0.25
+    """Ray CPUs reserved per rollout worker (fractional: they mostly wait on their server)."""
+    learner_cpus: float = 0.5
+    """Ray CPUs reserved for the learner."""
+    server_cpus: float = 0.2
+    """Ray CPUs reserved per supervised robot server (one per sim worker, one for the evaluator)."""
+    evaluator_cpus: float = 0.1
+    """Ray CPUs reserved for the evaluator."""
+    learner_gpus: float = -1.0
+    """GPUs for the learner: -1 = one if the cluster has any, else 0."""
+    server_resource: str | None = None
+    """Custom Ray resource robot-server actors require (places them on the nodes that have it)."""
+    log_every_s: float = 5.0
+    """Seconds between TensorBoard writes of rates and counters."""
+    progress: bool = True
+    """Show a progress bar in the terminal."""
+
+    def cpu_demand(self) -> float:
+        """Ray CPUs the run reserves (the supervisor's own 0.05 included)."""
+        servers = self.workers + (1 if self.evaluator else 0)
+        return (
+            self.learner_cpus
+            + (self.workers + len(self.real_robot)) * self.worker_cpus
+            + servers * self.server_cpus
+            + (self.evaluator_cpus if self.evaluator else 0.0)
+            + 0.05
+        )
+
+    def __post_init__(self) -> None:
+        checks = [
+            (self.workers >= 0, "workers", ">= 0"),
+            (self.workers + len(self.real_robot) >= 1, "workers", ">= 1 with no real robot"),
+            (
+                0 <= self.emulated_workers <= self.workers,
+                "emulated_workers",
+                f"in [0, workers={self.workers}]",
+            ),
+            (self.total_steps >= 1, "total_steps", ">= 1"),
+            (self.steps_per_call >= 1, "steps_per_call", ">= 1"),
+            (self.select_episodes >= 0, "select_episodes", ">= 0"),
+            (self.eval_interval_s >= 0, "eval_interval_s", ">= 0"),
+            (self.video_interval_s >= 0, "video_interval_s", ">= 0"),
+            (self.evaluator or not self.select_episodes, "select_episodes", "0 without evaluator"),
+            (self.weight_sync_steps >= 1, "weight_sync_steps", ">= 1"),
+            (self.sigma_min >= 0, "sigma_min", ">= 0"),
+            (self.sigma_decay_start >= 0, "sigma_decay_start", ">= 0"),
+            (self.sigma_decay_steps >= 0, "sigma_decay_steps", ">= 0"),
+            (0.0 <= self.sigma_final_scale <= 1.0, "sigma_final_scale", "in [0, 1]"),
+            (0.0 <= self.revisit_failed <= 1.0, "revisit_failed", "in [0, 1]"),
+            (self.revisit_pool >= 1, "revisit_pool", ">= 1"),
+            (self.revisit_max >= 1, "revisit_max", ">= 1"),
+            (self.worker_cpus > 0 and self.learner_cpus > 0, "worker_cpus/learner_cpus", "> 0"),
+        ]
+        for ok, name, expected in checks:
+            if not ok:
+                raise ConfigError(
+                    f"TrainConfig.{name}={getattr(self, name.split('/')[0])!r}; expected {expected}"
+                )
+        for address in self.real_robot:
+            host, sep, port = address.rpartition(":")
+            if not sep or not host or not port.isdigit() or not 0 < int(port) <= 65535:
+                raise ConfigError(f"--real-robot {address!r} is not HOST:PORT (port 1-65535)")

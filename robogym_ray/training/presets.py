@@ -1,0 +1,83 @@
+"""Task presets: short names for the paper's problems and D4PG settings that fit their rewards.
+
+Any registered Gymnasium id with Box spaces also works as ``--task``; presets only add the
+critic support (see ``robogym_ray.learner.config`` on choosing ``v_min``/``v_max``) and a few
+hyperparameters known to suit the task.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import gymnasium as gym
+
+from robogym_ray.errors import ConfigError
+from robogym_ray.learner.config import D4PGConfig
+from robogym_ray.learner.run_local import PRESETS
+
+
+@dataclass(frozen=True)
+class TaskPreset:
+    env_id: str
+    d4pg: Mapping[str, Any] = field(default_factory=dict)
+    """D4PGConfig overrides that suit this task's reward scale and horizon."""
+
+
+_NAVIGATION = {"v_min": -300.0, "v_max": 450.0, "layer_norm": True, "min_replay_size": 500}
+
+TASKS: dict[str, TaskPreset] = {
+    # Navigation: shaping sums to ~50 x start distance (<= ~350), success +100, collision -200.
+    "navigation": TaskPreset("RoboGymRay/ObstacleAvoidanceMir100Sim-v0", _NAVIGATION),
+    # The same task observing the nearest laser return per sector (envs/mir100_sectors.py).
+    "navigation-sectors": TaskPreset(
+        "RoboGymRay/ObstacleAvoidanceSectorsMir100Sim-v0", _NAVIGATION
+    ),
+    # Positioning: progress 50/m over <= ~2.4 m, +100 at the goal, -200 on collision.
+    "positioning": TaskPreset(
+        "RoboGymRay/EndEffectorPositioningUR10Sim-v0",
+        {"v_min": -250.0, "v_max": 250.0, "layer_norm": True, "min_replay_size": 500},
+    ),
+    # Pendulum: the preset proven by benchmarks/pendulum.py (one source: run_local.PRESETS).
+    "pendulum": TaskPreset("Pendulum-v1", PRESETS["Pendulum-v1"]),
+}
+
+
+def resolve_task(task: str) -> TaskPreset:
+    """A preset by short name, or a bare preset for a registered env id (clear error if none)."""
+    if task in TASKS:
+        return TASKS[task]
+    import robogym_ray  # noqa: F401 - registers RoboGymRay/* ids
+
+    if task in gym.registry:
+        return TaskPreset(task)
+    known = sorted(k for k in gym.registry if k.startswith("RoboGymRay/"))
+    raise ConfigError(
+        f"unknown task {task!r}: use a short name ({', '.join(TASKS)}) or a registered "
+        f"Gymnasium id, e.g. {', '.join(known[:4]) or 'Pendulum-v1'}"
+    )
+
+
+def d4pg_for(preset: TaskPreset, overrides: Mapping[str, Any] | None = None) -> D4PGConfig:
+    """D4PGConfig = defaults <- task preset <- user overrides (config file)."""
+    base = replace(D4PGConfig(), **dict(preset.d4pg))
+    if not overrides:
+        return base
+    known = set(D4PGConfig.__dataclass_fields__)
+    unknown = sorted(set(overrides) - known)
+    if unknown:
+        raise ConfigError(f"unknown D4PG setting(s) {unknown}; known: {sorted(known)}")
+    values = {k: tuple(v) if isinstance(v, list) else v for k, v in overrides.items()}
+    return replace(base, **values)
+
+
+def safety_for(env_id: str) -> Any:
+    """Safety limits for the real robot a task's Rob variant drives (MiR100 twist or UR joints)."""
+    from robogym_ray.realrobot.safety import SafetyConfig
+
+    if "Mir100" in env_id:
+        return SafetyConfig.mir100()
+    if "UR" in env_id:
+        return SafetyConfig.ur()
+    raise ConfigError(f"no real-robot safety limits known for {env_id}")

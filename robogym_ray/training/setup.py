@@ -1,0 +1,205 @@
+"""How a training run joins Ray and gets its robot servers (the supervisor hooks)."""
+
+from __future__ import annotations
+
+import logging
+import shutil
+from collections import Counter
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import ray
+import torch
+
+from robogym_ray.distributed import remote
+from robogym_ray.learner.service import CHECKPOINT_NAME
+from robogym_ray.supervision.restart_policy import FaultCause
+from robogym_ray.distributed.provider import SupervisorServerProvider
+from robogym_ray.experience.revisits import FailedStartRevisits
+from robogym_ray.supervision.supervisor import SupervisorConfig
+from robogym_ray.training.config import TrainConfig
+from robogym_ray.errors import ConfigError
+from robogym_ray.learner.config import D4PGConfig
+from robogym_ray.learner.learner import REPLAY_SUFFIX, linear_ramp
+from robogym_ray.learner.networks import DistributionalCritic, Policy
+from robogym_ray.robots.emulation import EmulationConfig
+
+log = logging.getLogger(__name__)
+
+
+def ensure_ray(cfg: TrainConfig) -> bool:
+    """Join ``cfg.address`` or start an embedded local Ray; True if this call started it."""
+    if ray.is_initialized():
+        return False
+    if cfg.address:
+        ray.init(address=cfg.address, log_to_driver=False)
+    else:
+        ray.init(num_cpus=cfg.num_cpus, include_dashboard=False, log_to_driver=False)
+    return True
+
+
+def worker_sigmas(d4pg: D4PGConfig, cfg: TrainConfig, n: int) -> list[float]:
+    """Ape-X style: a spread of exploration noises from d4pg.sigma down to sigma_min."""
+    if n <= 1:
+        return [d4pg.sigma] * n
+    return list(np.linspace(d4pg.sigma, min(cfg.sigma_min, d4pg.sigma), n))
+
+
+def noise_scale(cfg: TrainConfig, env_steps: int) -> float:
+    """Factor on every worker's sigma after ``env_steps`` (the linear late decay)."""
+    if cfg.sigma_decay_steps <= 0:
+        return 1.0
+    return linear_ramp(
+        env_steps, cfg.sigma_decay_start, cfg.sigma_decay_steps, 1.0, cfg.sigma_final_scale
+    )
+
+
+def revisits_for(cfg: TrainConfig, index: int) -> FailedStartRevisits | None:
+    """Worker ``index``'s failed-start revisits (None when cfg.revisit_failed is 0)."""
+    if cfg.revisit_failed <= 0:
+        return None
+    return FailedStartRevisits(
+        cfg.revisit_failed, cfg.revisit_pool, cfg.revisit_max, seed=cfg.seed + index
+    )
+
+
+def real_env_id(env_id: str) -> str:
+    """The Rob variant of a RoboGymRay Sim id (the same task on a real robot)."""
+    if env_id.startswith("RoboGymRay/") and env_id.endswith("Sim-v0"):
+        return env_id[: -len("Sim-v0")] + "Rob-v0"
+    raise ValueError(f"{env_id} has no real-robot variant")
+
+
+def check_resources(cfg: TrainConfig) -> None:
+    """Fail fast when the actors cannot all be scheduled (they would wait forever otherwise)."""
+    available = ray.cluster_resources().get("CPU", 0.0)
+    demand = cfg.cpu_demand()
+    if demand > available + 1e-9:
+        raise ConfigError(
+            f"the run reserves {demand:.2f} Ray CPUs but the cluster has {available:g}: lower "
+            f"--workers ({cfg.workers}), --worker-cpus ({cfg.worker_cpus}), --server-cpus "
+            f"({cfg.server_cpus}) or --learner-cpus ({cfg.learner_cpus}), or add nodes"
+        )
+
+
+def learner_gpus(cfg: TrainConfig) -> float:
+    if cfg.learner_gpus >= 0:
+        return cfg.learner_gpus
+    return 1.0 if ray.cluster_resources().get("GPU", 0) >= 1 else 0.0
+
+
+@dataclass
+class Supervision:
+    """The supervisor a run uses: a running one (e.g. ``robogym-ray manager``) or its own."""
+
+    actor: Any
+    name: str
+    owned: bool
+    resources: tuple[tuple[str, float], ...] = ()
+
+    def provider(self, emulation: EmulationConfig | None = None) -> SupervisorServerProvider:
+        return SupervisorServerProvider(
+            name=self.name, resources=self.resources, emulation=emulation
+        )
+
+    def restart_counts(self) -> dict[str, int]:
+        """Restarts by cause over every server of this supervisor."""
+        try:
+            servers = ray.get(self.actor.status.remote(), timeout=10)
+        except Exception:  # noqa: BLE001 - a dead supervisor must not stop the run's logging
+            return {}
+        # Every cause appears (zeros too), so TensorBoard shows the five faults from the start.
+        counts: Counter[str] = Counter({cause.value: 0 for cause in FaultCause})
+        for server in servers:
+            counts.update(server.get("restarts", {}))
+        return dict(counts)
+
+    def server_nodes(self) -> list[dict[str, Any]]:
+        """Where each running server is: its Ray node id and that node's custom resources."""
+        nodes = {n["NodeID"]: n.get("Resources", {}) for n in ray.nodes() if n.get("Alive")}
+        out = []
+        for server in ray.get(self.actor.status.remote()):
+            if server.get("pid"):
+                res = nodes.get(server.get("node_id", ""), {})
+                custom = {
+                    k: v
+                    for k, v in res.items()
+                    if k not in ("CPU", "GPU", "memory", "object_store_memory")
+                    and not k.startswith("node:")
+                }
+                out.append({"id": server["id"], "node_id": server.get("node_id", ""), **custom})
+        return out
+
+    def stop(self) -> None:
+        if self.owned:
+            try:
+                ray.get(self.actor.shutdown.remote(), timeout=30)
+            finally:
+                ray.kill(self.actor, no_restart=True)
+
+
+def start_supervision(cfg: TrainConfig, env_id: str, run_name: str) -> Supervision | None:
+    """Supervision for RoboGymRay Sim tasks; None for other envs (e.g. Pendulum-v1)."""
+    if not env_id.startswith("RoboGymRay/"):
+        return None
+    resources = ((cfg.server_resource, 0.01),) if cfg.server_resource else ()
+    running = remote.get_supervisor()
+    if running is not None:
+        log.warning("using the running supervisor %s", remote.SUPERVISOR_NAME)
+        return Supervision(running, remote.SUPERVISOR_NAME, owned=False, resources=resources)
+    name = f"{remote.SUPERVISOR_NAME}-{run_name}"
+    actor = remote.start_supervisor(SupervisorConfig(server_num_cpus=cfg.server_cpus), name=name)
+    return Supervision(actor, name, owned=True, resources=resources)
+
+
+def seed_checkpoint(
+    init_from: str, checkpoint_dir: Path, d4pg: D4PGConfig, obs_dim: int, act_dim: int
+) -> bool:
+    """Copy ``init_from`` (and its replay) into ``checkpoint_dir`` for the learner to restore.
+
+    Checked here, in the driver, so a checkpoint of another task or network size fails with one
+    clear error instead of a learner actor that crashes and restarts. Returns False (and copies
+    nothing) when the run already has its own checkpoint, e.g. a re-run of the same command.
+    """
+    target = checkpoint_dir / CHECKPOINT_NAME
+    if target.exists():
+        log.warning("%s exists; --init-from %s is not used", target, init_from)
+        return False
+    source = Path(init_from)
+    if not source.is_file():
+        raise ConfigError(f"--init-from {init_from}: no such checkpoint file")
+    # The learner's two network classes only: a whole D4PGLearner would allocate its replay and
+    # set torch's threads, seed and denormal mode in this (driver) process.
+    policy = Policy(obs_dim, act_dim, d4pg.policy_hidden, d4pg.layer_norm)
+    critic = DistributionalCritic(
+        obs_dim, act_dim, d4pg.critic_hidden, d4pg.num_atoms, d4pg.layer_norm
+    )
+    try:
+        state = torch.load(source, map_location="cpu", weights_only=True)
+        policy.load_state_dict(state["nets"]["policy"])
+        critic.load_state_dict(state["nets"]["critic"])
+    except Exception as exc:  # noqa: BLE001 - any failure means "not a checkpoint for this run"
+        raise ConfigError(
+            f"--init-from {init_from}: not a D4PG checkpoint for obs_dim={obs_dim}, "
+            f"act_dim={act_dim}, policy_hidden={list(d4pg.policy_hidden)}, "
+            f"critic_hidden={list(d4pg.critic_hidden)}, num_atoms={d4pg.num_atoms}, "
+            f"layer_norm={d4pg.layer_norm} ({type(exc).__name__}: {exc})"
+        ) from exc
+    checkpoint_dir.mkdir(parents=True, exist_ok=True)
+    shutil.copy2(source, target)
+    replay = Path(f"{source}{REPLAY_SUFFIX}")
+    if replay.is_file():
+        shutil.copy2(replay, Path(f"{target}{REPLAY_SUFFIX}"))
+    log.info("continuing from %s (step %d)", source, int(state["num_steps"]))
+    return True
+
+
+def evaluator_env_kwargs(cfg: TrainConfig, env_id: str) -> dict[str, Any]:
+    """What the evaluator's env needs beyond a worker's: frames for eval/video (our envs only)."""
+    if cfg.video_interval_s <= 0 or not env_id.startswith("RoboGymRay/"):
+        return {}
+    from robogym_ray.envs.render import RenderConfig
+
+    return {"render_mode": "rgb_array", "render_config": RenderConfig(width=320, height=240)}

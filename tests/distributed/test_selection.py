@@ -1,0 +1,72 @@
+"""Snapshot selection: the evaluator's repeatable episodes and the kept best policy."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from robogym_ray.experience.evaluator import Evaluator
+from robogym_ray.learner.service import LearnerService
+from robogym_ray.experience.rollout import make_gym_env
+from robogym_ray.training.selection import BEST_POLICY_NAME, SnapshotSelector
+from robogym_ray.training.config import TrainConfig
+from robogym_ray.errors import ConfigError
+from robogym_ray.export import load_checkpoint_policy
+from robogym_ray.learner.config import D4PGConfig
+
+SMALL = D4PGConfig(policy_hidden=(16, 16), critic_hidden=(16, 16), num_atoms=11)
+
+
+def test_evaluator_with_seed_base_scores_every_call_on_the_same_episodes() -> None:
+    evaluator = Evaluator(make_gym_env("Pendulum-v1"), SMALL)
+    weights, version = LearnerService(SMALL, 3, 1).get_weights()
+    fixed = [evaluator.evaluate(weights, version, 2, seed_base=7)["eval_return"] for _ in "ab"]
+    rolling = [evaluator.evaluate(weights, version, 2)["eval_return"] for _ in "ab"]
+    evaluator.close()
+    assert fixed[0] == fixed[1]  # same greedy policy, same episodes
+    assert rolling[0] != rolling[1]  # new seeds each call
+    assert evaluator.episodes == 8
+
+
+def _result(success: float, ret: float) -> dict[str, float]:
+    return {"eval_snapshot_success_rate": success, "eval_return": ret}
+
+
+def test_selector_keeps_the_best_snapshot_where_evaluate_and_export_read_it(
+    tmp_path: Path,
+) -> None:
+    first, _ = LearnerService(SMALL, 3, 1, seed=0).get_weights()
+    second, _ = LearnerService(SMALL, 3, 1, seed=1).get_weights()
+    selector = SnapshotSelector(tmp_path)
+    assert selector.better(_result(0.5, 10.0))
+    selector.keep(_result(0.5, 10.0), first, 100, 5000)
+    assert not selector.better(_result(0.5, 9.0))  # same success, lower return
+    assert not selector.better(_result(0.4, 99.0))
+    assert selector.better(_result(0.6, -5.0))
+    selector.keep(_result(0.6, -5.0), second, 300, 9000)
+    assert selector.summary() == {
+        "path": str(tmp_path / BEST_POLICY_NAME),
+        "learner_steps": 300,
+        "env_steps": 9000,
+        "success_rate": 0.6,
+        "return": -5.0,
+        "snapshots_scored": 4,
+    }
+    policy, info = load_checkpoint_policy(tmp_path / BEST_POLICY_NAME)
+    assert (info.obs_dim, info.act_dim, info.policy_hidden) == (3, 1, (16, 16))
+    for name, value in policy.state_dict().items():
+        assert np.array_equal(value.numpy(), second[name]), name
+    assert not any(np.array_equal(policy.state_dict()[k].numpy(), v) for k, v in first.items()
+                   if v.ndim == 2)  # fmt: skip
+    assert not (tmp_path / "policy-best.tmp").exists()
+    assert torch.load(tmp_path / BEST_POLICY_NAME, weights_only=True)["selection"]["env_steps"]
+
+
+def test_selection_needs_the_evaluator() -> None:
+    with pytest.raises(ConfigError, match="select_episodes"):
+        TrainConfig(select_episodes=20, evaluator=False)
+    with pytest.raises(ConfigError, match="select_episodes"):
+        TrainConfig(select_episodes=-1)

@@ -1,0 +1,310 @@
+"""The distributed training program on a local Ray (num_cpus=2): the issue's acceptance runs."""
+
+from __future__ import annotations
+
+import argparse
+import io
+import os
+import signal
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import ray
+
+from robogym_ray.distributed import remote
+from robogym_ray.training import command as train_cmd
+from robogym_ray.training.config import TrainConfig
+from robogym_ray.training.run import run_training
+from robogym_ray.errors import ConfigError
+from robogym_ray.robots.emulation import EmulationConfig
+from robogym_ray.robots.serve import serve_process
+
+pytestmark = [pytest.mark.ray, pytest.mark.slow, pytest.mark.usefixtures("ray_cluster")]
+
+NAV = "RoboGymRay/ObstacleAvoidanceMir100Sim-v0"
+EXPECTED_TAGS = {
+    "episode/return",
+    "train/success_rate",
+    "train/collision_rate",
+    "train/timeout_rate",
+    "eval/success_rate",
+    "eval/collision_rate",
+    "eval/timeout_rate",
+    "loss/critic",
+    "loss/policy",
+    "learner/mean_q",
+    "replay/mean_priority",
+    "replay/size",
+    "throughput/env_steps_per_s",
+    "throughput/learner_steps_per_s",
+    "weights/lag",
+    "explore/revisit_fraction",
+    "explore/revisit_success_rate",
+}
+
+
+def scalar_tags(run_dir: str) -> set[str]:
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    acc = EventAccumulator(run_dir)
+    acc.Reload()
+    return set(acc.Tags()["scalars"])
+
+
+def eval_video(run_dir: str) -> Any:
+    """The first eval/video image event (an animated GIF)."""
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    acc = EventAccumulator(run_dir, size_guidance={"images": 0})
+    acc.Reload()
+    return acc.Images("eval/video")[0]
+
+
+def test_navigation_run_completes_with_tensorboard_scalars(tmp_path: Path) -> None:
+    cfg = TrainConfig(
+        task=NAV,
+        workers=2,
+        total_steps=3000,
+        logdir=str(tmp_path),
+        run_name="nav",
+        progress=False,
+        log_every_s=1.0,
+        revisit_failed=1.0,  # the untrained policy fails: the next start of a worker revisits
+    )
+    summary = run_training(cfg)
+    assert summary["env_steps"] >= 3000
+    assert summary["learner_steps"] > 0 and summary["episodes"] > 0
+    # Revisits are counted apart from the task's own starts (whose rates train/ reports).
+    assert 0 < summary["revisited_episodes"] < summary["episodes"]
+    assert summary["explore/revisit_fraction"] > 0
+    assert Path(summary["checkpoint"]).exists()
+    tags = scalar_tags(str(tmp_path / "nav"))
+    assert tags >= EXPECTED_TAGS, EXPECTED_TAGS - tags
+    assert (tmp_path / "nav" / "summary.json").exists()
+    # The first evaluation is filmed (video_interval_s defaults to 300 s): an animated GIF.
+    from PIL import Image
+
+    video = eval_video(str(tmp_path / "nav"))
+    gif = Image.open(io.BytesIO(video.encoded_image_string))
+    assert gif.format == "GIF" and gif.size == (320, 240) == (video.width, video.height)
+    assert gif.n_frames > 2
+
+
+def _kill_when(condition: Any, pid_of: Any, done: threading.Event, log: list[str]) -> None:
+    """Background fault injector: SIGKILL ``pid_of()`` once ``condition()`` holds."""
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and not done.is_set():
+        try:
+            if condition():
+                pid = pid_of()
+                os.kill(pid, signal.SIGKILL)
+                log.append(f"killed {pid}")
+                return
+        except Exception as exc:  # noqa: BLE001 - actors may not exist yet
+            log.append(repr(exc))
+        time.sleep(0.5)
+
+
+def test_killing_a_robot_server_and_the_learner_mid_run(tmp_path: Path) -> None:
+    run = "faults"
+    cfg = TrainConfig(
+        task=NAV,
+        workers=2,
+        total_steps=3000,
+        logdir=str(tmp_path),
+        run_name=run,
+        progress=False,
+        checkpoint_every=50,
+        evaluator=False,
+    )
+    done = threading.Event()
+    log: list[str] = []
+
+    def supervisor() -> Any:
+        return ray.get_actor(f"{remote.SUPERVISOR_NAME}-{run}", namespace=remote.NAMESPACE)
+
+    def learner() -> Any:
+        return ray.get_actor(f"learner-{run}", namespace=remote.NAMESPACE)
+
+    def servers_up() -> bool:
+        return len([s for s in ray.get(supervisor().status.remote()) if s["pid"]]) >= 2
+
+    def server_pid() -> int:
+        return next(s["pid"] for s in ray.get(supervisor().status.remote()) if s["pid"])
+
+    def learner_checkpointed() -> bool:
+        return (tmp_path / run / "checkpoints" / "learner.pt").exists()
+
+    def learner_pid() -> int:
+        return int(ray.get(learner().status.remote())["pid"])
+
+    injectors = [
+        threading.Thread(target=_kill_when, args=(servers_up, server_pid, done, log)),
+        threading.Thread(target=_kill_when, args=(learner_checkpointed, learner_pid, done, log)),
+    ]
+    for t in injectors:
+        t.start()
+    try:
+        # A restarted learner restores networks, not replay: a small warm-up lets it train again
+        # within this short run however late the kill lands.
+        summary = run_training(cfg, {"min_replay_size": 256})
+    finally:
+        done.set()
+        for t in injectors:
+            t.join()
+    assert sum("killed" in line for line in log) == 2, log
+    assert summary["env_steps"] >= 3000
+    # The robot server's crash was detected, the server restarted and counted with its cause.
+    assert summary["restarts"].get("connection", 0) >= 1, summary["restarts"]
+    # The worker whose server died ended that episode and dropped its unfinished n-step window,
+    # so no transition in replay spans the crash.
+    assert summary["final_status_counts"].get("server_restarted", 0) >= 1
+    assert summary["dropped_steps"] >= 1
+    # The learner came back from its checkpoint and training continued past it.
+    assert summary["learner_restored_from_step"] > 0
+    assert summary["learner_steps"] > summary["learner_restored_from_step"]
+
+
+@pytest.fixture
+def real_mir100() -> Any:
+    """`robogym-ray serve --real-time` in its own process: the stand-in for a real MiR100."""
+    with serve_process(
+        ["--robot", "mir100", "--scene", "lab_6x8", "--real-time", "--port", "0"]
+    ) as a:
+        yield a
+
+
+def test_mixed_sim_and_real_robot_workers(tmp_path: Path, real_mir100: str) -> None:
+    cfg = TrainConfig(
+        task=NAV,
+        workers=1,
+        real_robot=(real_mir100,),
+        total_steps=600,
+        logdir=str(tmp_path),
+        run_name="mixed",
+        progress=False,
+        evaluator=False,
+        steps_per_call=20,
+    )
+    summary = run_training(cfg)
+    assert summary["env_steps"] >= 600
+    # Worker 1 drove the real-time "real" robot (10 actions/s) through its real-robot actor.
+    assert summary["worker_steps"]["0"] > 0 and summary["worker_steps"]["1"] > 0
+    assert summary["robot_errors"] == 0
+
+
+def test_a_run_that_cannot_fit_the_cluster_is_refused(tmp_path: Path) -> None:
+    cfg = TrainConfig(task=NAV, workers=8, total_steps=10, logdir=str(tmp_path), progress=False)
+    with pytest.raises(ConfigError, match="Ray CPUs"):
+        run_training(cfg)
+
+
+def pendulum(tmp_path: Path, run_name: str, total_steps: int, **more: Any) -> TrainConfig:
+    """A one-worker Pendulum-v1 run (no robot servers): the cheapest real training."""
+    return TrainConfig(task="pendulum", workers=1, total_steps=total_steps, logdir=str(tmp_path),
+                       run_name=run_name, progress=False, random_steps=200, **more)  # fmt: skip
+
+
+def test_pendulum_runs_without_a_supervisor(tmp_path: Path) -> None:
+    summary = run_training(pendulum(tmp_path, "pend", 600))
+    assert summary["env_steps"] >= 600 and summary["restarts"] == {}
+
+
+def test_a_run_continues_from_another_runs_checkpoint_and_replay(tmp_path: Path) -> None:
+    common = dict(task="pendulum", workers=1, logdir=str(tmp_path), progress=False)
+    small = {"min_replay_size": 256}
+    first = run_training(
+        TrainConfig(
+            **common, run_name="first", total_steps=600, random_steps=200, save_replay=True
+        ),
+        small,
+    )
+    assert first["learner_steps"] > 0
+    checkpoint = Path(first["checkpoint"])
+    assert Path(f"{checkpoint}.replay.npz").exists()
+    second = run_training(
+        TrainConfig(**common, run_name="second", total_steps=200, init_from=str(checkpoint)),
+        small,
+    )
+    assert second["learner_restored_from_step"] == first["learner_steps"]
+    assert second["learner_steps"] > first["learner_steps"]
+    with pytest.raises(ConfigError, match="init-from"):
+        run_training(TrainConfig(**common, run_name="third", init_from=str(tmp_path / "x.pt")))
+
+
+def test_emulated_workers_train_on_emulated_robots_and_the_evaluator_does_not(
+    tmp_path: Path,
+) -> None:
+    """Domain randomisation: worker 0 leases an emulated MiR100, worker 1 and the evaluator the
+    plain simulation; config.json records the emulation and reads back through --config."""
+    run = "dr"
+    cfg = TrainConfig(
+        task=NAV,
+        workers=2,
+        emulated_workers=1,
+        total_steps=1500,
+        logdir=str(tmp_path),
+        run_name=run,
+        progress=False,
+    )
+    emulation = EmulationConfig(laser_noise_sigma=0.03, latency_ticks=2)
+    seen: list[list[bool]] = []
+    done = threading.Event()
+
+    def watch() -> None:
+        while not done.is_set():
+            sup = remote.get_supervisor(f"{remote.SUPERVISOR_NAME}-{run}")
+            if sup is not None:
+                try:
+                    servers = [s for s in ray.get(sup.status.remote()) if s["leased"]]
+                except Exception:  # noqa: BLE001 - the run may be ending
+                    servers = []
+                if len(servers) == 3:
+                    seen.append(sorted(s["emulated"] for s in servers))
+                    return
+            time.sleep(0.3)
+
+    watcher = threading.Thread(target=watch)
+    watcher.start()
+    try:
+        summary = run_training(cfg, None, emulation)
+    finally:
+        done.set()
+        watcher.join()
+    assert summary["env_steps"] >= 1500
+    assert seen == [[False, False, True]]
+    parser = argparse.ArgumentParser()
+    train_cmd.add_arguments(parser)
+    again = train_cmd.build_config(
+        parser.parse_args(["--config", str(tmp_path / run / "config.json")])
+    )
+    assert again.emulation == emulation and again.train.emulated_workers == 1
+
+
+def test_snapshot_selection_keeps_a_best_policy_that_evaluate_reads(tmp_path: Path) -> None:
+    from robogym_ray.export import load_policy
+
+    summary = run_training(
+        pendulum(tmp_path, "sel", 1500, select_episodes=1),
+        {"min_replay_size": 256, "policy_average_tau": 0.05},
+    )
+    # With policy averaging the run ships (and evaluate loads) the average.
+    final = load_policy(tmp_path / "sel" / "checkpoints" / "learner.pt")
+    assert final.info.source.endswith("learner.pt#policy_average")
+    best = summary["best_snapshot"]
+    assert best["snapshots_scored"] >= 1 and Path(best["path"]).name == "policy-best.pt"
+    assert len(summary["eval_history"]) == best["snapshots_scored"]  # every evaluation scored
+    policy = load_policy(best["path"])  # what `robogym-ray evaluate` / `export` load
+    assert policy.info.env_id == "Pendulum-v1"
+    assert policy(np.zeros(3)).shape == (1,)
+
+
+def test_eval_interval_spaces_the_evaluator_calls(tmp_path: Path) -> None:
+    spaced = run_training(pendulum(tmp_path, "spaced", 1500, eval_interval_s=1e6))
+    back_to_back = run_training(pendulum(tmp_path, "b2b", 1500))
+    assert len(spaced["eval_history"]) == 1  # the first call, then none for 10^6 s
+    assert len(back_to_back["eval_history"]) > 1
