@@ -28,8 +28,8 @@ import gymnasium as gym
 import numpy as np
 
 import robogym_ray  # noqa: F401 - registers the ids
-from robogym_ray.protocol.client import RobotServerClient
 from robogym_ray.envs.ur_common import to_ros
+from robogym_ray.protocol.client import RobotServerClient
 from robogym_ray.robots.server import start_robot_server
 
 PAPER_ENVS = (

@@ -2,7 +2,7 @@
 
     nice python benchmarks/pendulum.py [--steps 20000] [--seeds 0 1 2] [--num-threads 1]
 
-Uses the Pendulum-v1 preset of ``robogym_ray.learner.run_local`` (support [-1500, 0], one
+Uses the Pendulum-v1 preset of ``robogym_ray.training.local`` (support [-1500, 0], one
 learner step per env step, Polyak targets; see PRESETS there). Seeds run one after another.
 Target: every seed >= -250 and median >= -200 (SB3 TD3, zoo settings: about -150 at 20k).
 Prints one JSON line per seed, then a summary line.
@@ -18,7 +18,7 @@ import time
 import numpy as np
 
 from robogym_ray.learner.config import D4PGConfig
-from robogym_ray.learner.run_local import PRESETS, RunConfig, train
+from robogym_ray.training.local import PRESETS, RunConfig, train
 
 FLOOR, MEDIAN_TARGET = -250.0, -200.0
 

@@ -22,12 +22,12 @@ from typing import Any
 
 import ray
 
-from robogym_ray.supervision.restart_policy import RestartPolicy
 from robogym_ray.distributed.remote import start_supervisor
+from robogym_ray.errors import RobotServerError
+from robogym_ray.protocol.client import Deadlines, RobotServerClient
+from robogym_ray.supervision.restart_policy import RestartPolicy
 from robogym_ray.supervision.server_host import ServerSpec
 from robogym_ray.supervision.supervisor import SupervisorConfig
-from robogym_ray.protocol.client import Deadlines, RobotServerClient
-from robogym_ray.errors import RobotServerError
 
 CAUSES = ("connection", "hung", "invalid_state", "deadline", "manual")
 

@@ -21,9 +21,9 @@ import time
 
 import numpy as np
 
-from robogym_ray.learner.service import LearnerService
 from robogym_ray.experience.revisits import FailedStartRevisits
 from robogym_ray.experience.rollout import RolloutWorker, box_dims, make_gym_env
+from robogym_ray.learner.service import LearnerService
 from robogym_ray.training.presets import d4pg_for, resolve_task
 
 

@@ -19,9 +19,9 @@ import numpy as np
 import ray
 
 from robogym_ray.distributed import remote
-from robogym_ray.learner.service import LearnerService
 from robogym_ray.distributed.provider import SupervisorServerProvider
 from robogym_ray.experience.rollout import box_dims, make_gym_env
+from robogym_ray.learner.service import LearnerService
 from robogym_ray.supervision.supervisor import SupervisorConfig
 from robogym_ray.training.presets import d4pg_for, resolve_task
 

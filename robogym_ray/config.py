@@ -110,8 +110,11 @@ def config_from_args(cls: type[T], args: argparse.Namespace) -> T:
     return cls(**values)
 
 
-def merge_config(cls: type[T], values: Mapping[str, Any], source: str = "config") -> T:
-    """``cls(**values)`` with clear errors for unknown fields and bad values."""
+def merge_config(
+    cls: type[T], values: Mapping[str, Any], source: str = "config", base: T | None = None
+) -> T:
+    """``cls(**values)`` (``base`` with ``values`` replaced, when given) with clear errors for
+    unknown fields and bad values; JSON lists become tuples. The one place configs merge."""
     known = {f.name for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
     unknown = sorted(set(values) - known)
     if unknown:
@@ -119,7 +122,8 @@ def merge_config(cls: type[T], values: Mapping[str, Any], source: str = "config"
             f"{source}: unknown {cls.__name__} field(s) {unknown}; known: {sorted(known)}"
         )
     try:
-        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in values.items()})
+        values = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()}
+        return cls(**values) if base is None else dataclasses.replace(base, **values)  # type: ignore[type-var]
     except (TypeError, ValueError) as exc:
         raise ConfigError(f"{source}: invalid {cls.__name__}: {exc}") from None
 

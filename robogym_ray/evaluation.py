@@ -27,12 +27,13 @@ from typing import Any
 
 import numpy as np
 
+from robogym_ray.envs import outcomes
+from robogym_ray.envs.outcomes import CATEGORIES
+from robogym_ray.envs.registration import variant_id
 from robogym_ray.envs.render.video import EpisodeVideos
 from robogym_ray.errors import ConfigError
+from robogym_ray.experience.episodes import greedy_episode
 from robogym_ray.robots.serve import serve_process
-
-TIMEOUT_STATUSES = ("max_steps_exceeded", "truncated")
-CATEGORIES = ("success", "collision", "timeout", "other")
 
 
 @dataclass(frozen=True)
@@ -112,13 +113,11 @@ class EvaluationResult:
 
     @property
     def counts(self) -> dict[str, int]:
-        counts = Counter(category(e.final_status) for e in self.episodes)
-        return {c: counts.get(c, 0) for c in CATEGORIES}
+        return outcomes.counts(e.final_status for e in self.episodes)
 
     @property
     def rates(self) -> dict[str, float]:
-        n = max(1, len(self.episodes))
-        return {f"{c}_rate": v / n for c, v in self.counts.items()}
+        return outcomes.rates(e.final_status for e in self.episodes)
 
     def summary(self) -> dict[str, Any]:
         returns = [e.ret for e in self.episodes]
@@ -144,20 +143,6 @@ class EvaluationResult:
             "|---|---|---|---|---|---|---|---|",
             f"| {self.env_id} | {where} | {n} | {' | '.join(cells)} | {s['mean_return']:.1f} |",
         ])  # fmt: skip
-
-
-def category(status: str) -> str:
-    if status in ("success", "collision"):
-        return status
-    return "timeout" if status in TIMEOUT_STATUSES else "other"
-
-
-def variant_id(env_id: str, variant: str) -> str:
-    """``...Sim-v0`` / ``...Rob-v0`` of the same task."""
-    for suffix in ("Sim-v0", "Rob-v0"):
-        if env_id.endswith(suffix):
-            return env_id[: -len(suffix)] + variant.capitalize() + "-v0"
-    raise ConfigError(f"{env_id} is not a RoboGymRay <Task><Robot>Sim/Rob-v0 id")
 
 
 def serve_args(env_id: str) -> list[str]:
@@ -214,45 +199,17 @@ def run_episodes(
     """Greedy episodes; ``policy`` maps an observation to an action in [-1, 1].
 
     ``videos`` films the episodes it wants (the env renders ``rgb_array``); ``paths`` keeps the
-    robot's positions (``env.unwrapped.position()``) in each record.
+    robot's positions (``env.unwrapped.position()``) and the cubes placed in each record.
     """
-    from robogym_ray.learner.actor import to_env_action
-
-    low = env.action_space.low.astype(np.float64)
-    high = env.action_space.high.astype(np.float64)
     for i in range(episodes):
-        obs, _ = env.reset(seed=seed + i)
-        target = getattr(env.unwrapped, "target", None)
         filmed = videos is not None and videos.wants(i)
-        frames = [env.render()] if filmed else []
-        path = [_where(env)] if paths else None
-        placed = getattr(env.unwrapped, "placed_obstacles", lambda: None)() if paths else None
-        ret, length, done, info = 0.0, 0, False, {}
-        truncated = False
-        while not done:
-            action = np.clip(policy(obs), -1.0, 1.0)
-            obs, reward, terminated, truncated, info = env.step(to_env_action(action, low, high))
-            ret += float(reward)
-            length += 1
-            done = terminated or truncated
-            if filmed:
-                frames.append(env.render())
-            if path is not None:
-                path.append(_where(env))
-        status = str(info.get("final_status", "truncated" if truncated else "terminated"))
+        ep = greedy_episode(env, policy, seed + i, film=filmed, track=paths)
         if filmed:
             assert videos is not None
-            videos.save(i, seed + i, status, frames)
+            videos.save(i, seed + i, ep.final_status, ep.frames)
         yield EpisodeRecord(
-            i, seed + i, status, ret, length,
-            None if target is None else [float(v) for v in np.ravel(target)], path,
-            None if placed is None else np.round(placed, 4).tolist(),
-        )  # fmt: skip
-
-
-def _where(env: Any) -> list[float]:
-    position = env.unwrapped.position()
-    return [] if position is None else [round(float(v), 4) for v in position]
+            i, seed + i, ep.final_status, ep.ret, ep.length, ep.target, ep.path, ep.obstacles
+        )
 
 
 @contextlib.contextmanager

@@ -24,6 +24,7 @@ import torch
 from torch import nn
 
 from robogym_ray.errors import ConfigError
+from robogym_ray.learner.checkpoint import policy_weights, read
 
 FORMAT = "robogym-ray-policy/torchscript-v1"
 
@@ -79,18 +80,7 @@ def load_checkpoint_policy(
     one its evaluator scored), else the online one; ``online=True`` always takes the online
     policy. ``PolicyInfo.source`` says which: ``PATH`` or ``PATH#policy_average``.
     """
-    try:
-        state = torch.load(checkpoint, map_location="cpu", weights_only=True)
-    except (OSError, RuntimeError, EOFError) as exc:
-        raise ConfigError(f"cannot read checkpoint {checkpoint}: {exc}") from None
-    try:
-        nets = state["nets"]
-        name = "policy" if online or "policy_average" not in nets else "policy_average"
-        policy_state = nets[name]
-    except (KeyError, TypeError):
-        raise ConfigError(
-            f"{checkpoint} is not a D4PGLearner checkpoint (no nets.policy)"
-        ) from None
+    name, policy_state = policy_weights(read(checkpoint), online)
     policy, info = policy_from_state_dict(policy_state)
     source = str(checkpoint) if name == "policy" else f"{checkpoint}#{name}"
     return policy, PolicyInfo(**{**asdict(info), "source": source})

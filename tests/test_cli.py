@@ -102,8 +102,8 @@ def test_train_merges_emulation_from_config_file_and_flags(tmp_path: Path) -> No
 
 
 def test_a_config_extends_another_field_by_field(tmp_path: Path) -> None:
-    from robogym_ray.training.command import read_sections
     from robogym_ray.errors import ConfigError
+    from robogym_ray.training.command import read_sections
 
     (tmp_path / "base.json").write_text(
         json.dumps({"train": {"workers": 2, "seed": 3}, "d4pg": {"sigma": 0.3, "n_step": 5}})

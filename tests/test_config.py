@@ -8,13 +8,13 @@ from pathlib import Path
 
 import pytest
 
-from robogym_ray.distributed.manager import ManagerConfig
-from robogym_ray.training.command import read_sections
-from robogym_ray.training.config import TrainConfig
 from robogym_ray.config import add_config_args, config_from_args, merge_config
+from robogym_ray.distributed.manager import ManagerConfig
 from robogym_ray.errors import ConfigError
 from robogym_ray.robots.serve import ServeConfig, is_loopback, parse_options
 from robogym_ray.robots.server import start_robot_server
+from robogym_ray.training.command import read_sections
+from robogym_ray.training.config import TrainConfig
 
 
 def test_field_docstrings_become_help() -> None:

@@ -55,15 +55,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import ray  # lazy: `robogym-ray --help` must not import Ray
 
-    from robogym_ray.supervision.restart_policy import RestartPolicy
+    from robogym_ray.distributed.names import NAMESPACE
     from robogym_ray.distributed.remote import start_supervisor
+    from robogym_ray.supervision.restart_policy import RestartPolicy
     from robogym_ray.supervision.supervisor import SupervisorConfig
 
     cfg = config_from_args(ManagerConfig, args)
     if cfg.ray_address:
-        ray.init(address=cfg.ray_address, namespace="robogym-ray")
+        ray.init(address=cfg.ray_address, namespace=NAMESPACE)
     else:
-        ray.init(num_cpus=cfg.num_cpus, include_dashboard=False, namespace="robogym-ray")
+        ray.init(num_cpus=cfg.num_cpus, include_dashboard=False, namespace=NAMESPACE)
     sup_cfg = SupervisorConfig(
         probe_interval_s=cfg.probe_interval_s, restart=RestartPolicy(max_restarts=cfg.max_restarts)
     )

@@ -16,10 +16,11 @@ from typing import Any
 
 import ray
 
-from robogym_ray.distributed.remote import SUPERVISOR_NAME, get_supervisor
-from robogym_ray.supervision.server_host import ServerSpec
+from robogym_ray.distributed.names import SUPERVISOR_NAME
+from robogym_ray.distributed.remote import get_supervisor
 from robogym_ray.errors import RobotServerError
 from robogym_ray.robots.emulation import EmulationConfig
+from robogym_ray.supervision.server_host import ServerSpec
 
 log = logging.getLogger(__name__)
 
@@ -86,13 +87,3 @@ class SupervisorServerProvider:
         )
         info = ray.get(supervisor.acquire.remote(spec))
         return SupervisorLease(supervisor, info["id"], info["address"], info["generation"])
-
-
-def supervisor_provider_if_running(name: str = SUPERVISOR_NAME) -> SupervisorServerProvider | None:
-    """The provider for the supervisor ``name`` if Ray is up and it runs, else None.
-
-    What a Sim env calls to choose between the supervisor and its embedded default.
-    """
-    if not ray.is_initialized() or get_supervisor(name) is None:
-        return None
-    return SupervisorServerProvider(name=name)

@@ -15,6 +15,7 @@ import numpy as np
 import ray
 from ray.exceptions import RayActorError, RayTaskError
 
+from robogym_ray.distributed.names import NAMESPACE
 from robogym_ray.errors import RobotServerError
 from robogym_ray.protocol import robot_server_pb2 as pb
 
@@ -83,7 +84,7 @@ class RealRobotClientFactory:
     """Picklable: builds a ``RealRobotClient`` on the named actor inside the worker."""
 
     actor_name: str
-    namespace: str = "robogym-ray"
+    namespace: str = NAMESPACE
 
     def __call__(self, address: str, **_: Any) -> RealRobotClient:
         return RealRobotClient(ray.get_actor(self.actor_name, namespace=self.namespace), address)

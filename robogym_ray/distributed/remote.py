@@ -28,17 +28,16 @@ from typing import Any
 import ray
 from ray.exceptions import GetTimeoutError, RayActorError
 
+from robogym_ray.distributed.names import NAMESPACE, SUPERVISOR_NAME
 from robogym_ray.experience.evaluator import Evaluator
-from robogym_ray.learner.service import LearnerService
-from robogym_ray.supervision.manager_service import serve_manager
-from robogym_ray.realrobot.robot import RealRobot
 from robogym_ray.experience.rollout import RolloutWorker
+from robogym_ray.learner.service import LearnerService
+from robogym_ray.realrobot.robot import RealRobot
 from robogym_ray.realrobot.safety import SafetyConfig
+from robogym_ray.supervision.manager_service import serve_manager
 from robogym_ray.supervision.server_host import RobotServerHost, ServerSpec
 from robogym_ray.supervision.supervisor import SpawnedServer, Supervisor, SupervisorConfig
 
-NAMESPACE = "robogym-ray"
-SUPERVISOR_NAME = "robogym-supervisor"
 log = logging.getLogger(__name__)
 
 

@@ -36,7 +36,7 @@ from typing import Any, ClassVar
 import gymnasium as gym
 import numpy as np
 
-from robogym_ray.protocol.client import Deadlines, RobotServerClient, check_action
+from robogym_ray.envs.outcomes import MAX_STEPS, SERVER_RESTARTED
 from robogym_ray.envs.render import HumanWindow, RenderConfig, check_display
 from robogym_ray.envs.servers import (
     ServerLease,
@@ -46,9 +46,7 @@ from robogym_ray.envs.servers import (
 )
 from robogym_ray.errors import ConfigError, InvalidStateError, RobotServerError
 from robogym_ray.protocol import robot_server_pb2 as pb
-
-SERVER_RESTARTED = "server_restarted"
-MAX_STEPS = "max_steps_exceeded"
+from robogym_ray.protocol.client import Deadlines, RobotServerClient, check_action
 
 StepInfo = dict[str, Any]
 
@@ -59,8 +57,8 @@ class RobotServerEnv(gym.Env[np.ndarray, np.ndarray]):
     Args:
         real_robot: Real variant (needs ``rs_address``; no server management).
         rs_address: ``host:port`` of a running robot server (Real: required; Sim: optional).
-        provider: where a Sim env gets servers (default: the supervisor when one runs in this
-            Ray session, else ``EmbeddedServerProvider()``).
+        provider: where a Sim env gets servers (default ``EmbeddedServerProvider()``; the
+            training program passes its supervisor's).
         token: shared token for the server (gRPC metadata ``robogym-token``).
         deadlines: per-RPC deadlines (default: ``Deadlines.fast()`` for the default embedded
             server, robo-gym's (spec a.2) for any other server).

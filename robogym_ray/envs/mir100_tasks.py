@@ -13,12 +13,13 @@ from typing import Any, ClassVar
 import numpy as np
 from gymnasium import spaces
 
+from robogym_ray.envs import outcomes
 from robogym_ray.envs.base import RobotServerEnv, StepInfo, polar_2d
-from robogym_ray.protocol.client import RobotServerClient
 from robogym_ray.envs.render import RenderConfig
 from robogym_ray.envs.render.mir100 import draw_mir100
 from robogym_ray.errors import InvalidStateError
 from robogym_ray.protocol import robot_server_pb2 as pb
+from robogym_ray.protocol.client import RobotServerClient
 
 STATE_LEN = 1030
 LASER = slice(8, 1020)
@@ -211,7 +212,7 @@ class NoObstacleNavigationMir100(_Mir100Task):
         reward, distance = self._shaping(msg, action)
         x, y = msg.state[3], msg.state[4]
         if distance < self.success_distance:
-            return reward + self.success_reward, "success", {}
+            return reward + self.success_reward, outcomes.SUCCESS, {}
         if abs(x) > 10.0 or abs(y) > 10.0:
             return reward - 200.0, "out of boundary", {}
         return reward, None, {}
@@ -305,9 +306,9 @@ class ObstacleAvoidanceMir100(_Mir100Task):
     ) -> tuple[float, str | None, StepInfo]:
         reward, distance = self._shaping(msg, action)
         if self._collided(msg):
-            return reward + self.collision_reward, "collision", {}
+            return reward + self.collision_reward, outcomes.COLLISION, {}
         if distance < self.success_distance:
-            return reward + self.success_reward, "success", {}
+            return reward + self.success_reward, outcomes.SUCCESS, {}
         return reward, None, {}
 
     def _collided(self, msg: pb.State) -> bool:

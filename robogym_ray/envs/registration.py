@@ -15,6 +15,8 @@ from typing import Any
 
 import gymnasium as gym
 
+from robogym_ray.errors import ConfigError
+
 _MIR = "robogym_ray.envs.mir100_tasks:"
 _MIRS = "robogym_ray.envs.mir100_sectors:"
 _UR = "robogym_ray.envs.ur_tasks:"
@@ -78,3 +80,12 @@ def register_all() -> list[str]:
                     )
                 ids.append(name)
     return ids
+
+
+def variant_id(env_id: str, variant: str) -> str:
+    """``...Sim-v0`` / ``...Rob-v0`` of the same task (``variant`` "sim" or "rob")."""
+    if env_id.startswith("RoboGymRay/"):
+        for suffix in ("Sim-v0", "Rob-v0"):
+            if env_id.endswith(suffix):
+                return env_id[: -len(suffix)] + variant.capitalize() + "-v0"
+    raise ConfigError(f"{env_id} is not a RoboGymRay/<Task><Robot><Sim|Rob>-v0 id")

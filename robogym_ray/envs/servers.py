@@ -18,7 +18,6 @@ Providers here:
 from __future__ import annotations
 
 import logging
-import sys
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, Protocol, runtime_checkable
@@ -137,16 +136,6 @@ class StaticServerProvider:
 
 
 def default_provider() -> ServerProvider:
-    """The supervisor when one is running in this process's Ray session, else embedded.
-
-    Ray is only consulted when this process already imported and initialised it, so a plain
-    ``gymnasium.make`` neither imports nor starts Ray.
-    """
-    ray = sys.modules.get("ray")
-    if ray is not None and ray.is_initialized():
-        from robogym_ray.distributed.provider import supervisor_provider_if_running
-
-        supervised = supervisor_provider_if_running()
-        if supervised is not None:
-            return supervised
+    """An embedded server. A supervised one is never looked up here: whoever wants one passes
+    a provider (the training program does), so a Sim env behaves the same in any process."""
     return EmbeddedServerProvider()

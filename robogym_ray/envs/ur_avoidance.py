@@ -10,7 +10,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from robogym_ray.envs.base import StepInfo
-from robogym_ray.protocol.client import RobotServerClient
+from robogym_ray.envs.outcomes import COLLISION, SUCCESS
 from robogym_ray.envs.ur_common import (
     URTask,
     box,
@@ -20,6 +20,7 @@ from robogym_ray.envs.ur_common import (
     spherical,
 )
 from robogym_ray.protocol import robot_server_pb2 as pb
+from robogym_ray.protocol.client import RobotServerClient
 
 RAAD_START = (-1.234, -1.854, -1.781, -1.069, 1.595, 0.0)
 RAAD_SEGMENTS = (162, 137, 213)
@@ -53,7 +54,7 @@ class _AvoidanceTask(URTask):
     velocity_scale = 0.2
     action_rate = 20.0
     max_episode_steps = 1000
-    limit_status = "success"
+    limit_status = SUCCESS
     min_distance: ClassVar[float] = 0.3
     collision_reward: ClassVar[float] = -0.1
 
@@ -168,7 +169,7 @@ class BasicAvoidanceUR(_AvoidanceTask):
         reward, gap = self.shaping(msg, action)
         info: StepInfo = {"object_distance": gap}
         if self.collided(msg):
-            return reward + self.collision_reward, "collision", info
+            return reward + self.collision_reward, COLLISION, info
         return reward, None, info
 
 
@@ -269,7 +270,7 @@ class AvoidanceRaad2022UR(_AvoidanceTask):
         reward += self.segment_bonus * self._completed
         info: StepInfo = {"object_distance": gap, "targets_reached": self.targets_reached}
         if self.collided(msg):
-            return reward + self.collision_reward, "collision", info
+            return reward + self.collision_reward, COLLISION, info
         return reward, None, info
 
     def _advance(self, joints: np.ndarray) -> int:

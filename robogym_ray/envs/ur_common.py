@@ -16,11 +16,11 @@ from gymnasium import spaces
 from scipy.spatial.transform import Rotation
 
 from robogym_ray.envs.base import RobotServerEnv
-from robogym_ray.protocol.client import RobotServerClient
 from robogym_ray.envs.render import RenderConfig
 from robogym_ray.envs.render.ur import draw_ur
 from robogym_ray.errors import ConfigError, InvalidStateError
 from robogym_ray.protocol import robot_server_pb2 as pb
+from robogym_ray.protocol.client import RobotServerClient
 
 JOINTS = ("base", "shoulder", "elbow", "wrist_1", "wrist_2", "wrist_3")
 POSITION_KEYS = tuple(f"{j}_joint_position" for j in JOINTS)

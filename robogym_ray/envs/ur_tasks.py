@@ -11,7 +11,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from robogym_ray.envs.base import StepInfo
-from robogym_ray.protocol.client import RobotServerClient
+from robogym_ray.envs.outcomes import COLLISION, SUCCESS
 from robogym_ray.envs.ur_common import (
     JOINT_MAX,
     URModel,
@@ -25,6 +25,7 @@ from robogym_ray.envs.ur_common import (
 )
 from robogym_ray.errors import ConfigError
 from robogym_ray.protocol import robot_server_pb2 as pb
+from robogym_ray.protocol.client import RobotServerClient
 
 PAPER_RADIUS_SCALE = 1.2 / 1.3
 """The paper's UR10 targets lie within 1.2 m; robo-gym's UR10 radius is 1.3 m (spec c.2.4)."""
@@ -170,9 +171,9 @@ class EndEffectorPositioningUR(_TargetTask):
         self._prev_distance = distance
         info: StepInfo = {"distance": distance, "target_coord": self.target.copy()}
         if self.collided(msg):
-            return reward + self.collision_reward, "collision", info
+            return reward + self.collision_reward, COLLISION, info
         if distance <= self.success_distance:
-            return reward + self.success_reward, "success", info
+            return reward + self.success_reward, SUCCESS, info
         return reward, None, info
 
 
@@ -245,9 +246,9 @@ class EndEffectorPositioningRoboGymUR(_TargetTask):
         info: StepInfo = {"distance": distance, "target_coord": self.target.copy()}
         reward = -0.005 * distance
         if self.collided(msg):
-            return reward - 1.0, "collision", info
+            return reward - 1.0, COLLISION, info
         if distance <= self.success_distance:
-            return reward + 2.0, "success", info
+            return reward + 2.0, SUCCESS, info
         return reward, None, info
 
 
@@ -277,7 +278,7 @@ class EmptyEnvironmentUR(URTask):
     """
 
     max_episode_steps = 300
-    limit_status = "success"
+    limit_status = SUCCESS
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
@@ -301,4 +302,4 @@ class EmptyEnvironmentUR(URTask):
         self, msg: pb.State, obs: np.ndarray, action: np.ndarray
     ) -> tuple[float, str | None, StepInfo]:
         info: StepInfo = {"rs_state": dict(msg.state_dict)}
-        return 0.0, ("collision" if self.collided(msg) else None), info
+        return 0.0, (COLLISION if self.collided(msg) else None), info

@@ -13,24 +13,15 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from robogym_ray.experience.rollout import EnvFactory, box_dims
+from robogym_ray.envs.outcomes import rates
 from robogym_ray.envs.render.video import gif_bytes
-from robogym_ray.learner.actor import PolicyActor, to_env_action
+from robogym_ray.experience.episodes import greedy_episode
+from robogym_ray.experience.rollout import EnvFactory, box_dims
+from robogym_ray.learner.actor import PolicyActor
 from robogym_ray.learner.config import D4PGConfig
 
-TIMEOUT = "max_steps_exceeded"
 VIDEO_KEY = "eval_video_gif"
 MAX_VIDEO_FRAMES = 120  # a longer episode is subsampled: the GIF stays ~1-2 MB
-
-
-def status_rates(statuses: list[str]) -> dict[str, float]:
-    """success / collision / timeout rates (0..1) over ``statuses``."""
-    n = max(1, len(statuses))
-    return {
-        "success_rate": sum(s == "success" for s in statuses) / n,
-        "collision_rate": sum(s == "collision" for s in statuses) / n,
-        "timeout_rate": sum(s in (TIMEOUT, "truncated") for s in statuses) / n,
-    }
 
 
 class Evaluator:
@@ -47,8 +38,6 @@ class Evaluator:
     ) -> None:
         self.env = make_env()
         obs_dim, act_dim = box_dims(self.env)
-        self.low = self.env.action_space.low.astype(np.float64)
-        self.high = self.env.action_space.high.astype(np.float64)
         self.actor = PolicyActor(obs_dim, act_dim, d4pg.policy_hidden, 0.0, d4pg.layer_norm)
         self.seed = seed
         self.episodes = 0
@@ -76,38 +65,30 @@ class Evaluator:
         film = self.video_every_s > 0 and time.monotonic() >= self._next_video
         for i in range(episodes):
             seed = self.seed + self.episodes if seed_base is None else seed_base + i
-            obs, _ = self.env.reset(seed=seed)
+            episode = greedy_episode(self.env, self._act, seed, film=film and i == 0)
             self.episodes += 1
-            ret, done, info = 0.0, False, {}
-            while not done:
-                if film and i == 0:
-                    frames.append(self.env.render())
-                action = self.actor.act(np.asarray(obs, dtype=np.float32), explore=False)
-                obs, reward, terminated, truncated, info = self.env.step(
-                    to_env_action(action, self.low, self.high)
-                )
-                ret += float(reward)
-                done = terminated or truncated
-            status = str(info.get("final_status", "truncated" if truncated else "terminated"))
-            self.statuses.append(status)
-            self.returns.append(ret)
-            rets.append(ret)
-            call_statuses.append(status)
+            frames = frames or episode.frames
+            self.statuses.append(episode.final_status)
+            self.returns.append(episode.ret)
+            rets.append(episode.ret)
+            call_statuses.append(episode.final_status)
         out = {
-            "eval_snapshot_success_rate": status_rates(call_statuses)["success_rate"],
+            "eval_snapshot_success_rate": rates(call_statuses)["success_rate"],
             "eval_return": float(np.mean(rets)),
             "eval_return_window": float(np.mean(self.returns)),
             "eval_episodes": float(self.episodes),
             "weights_version": float(version),
-            **{f"eval_{k}": v for k, v in status_rates(list(self.statuses)).items()},
+            **{f"eval_{k}": v for k, v in rates(self.statuses).items()},
         }
         if frames:
-            frames.append(self.env.render())  # the end state, where the episode stopped
             stride = -(-len(frames) // MAX_VIDEO_FRAMES)
             fps = self.env.metadata.get("render_fps", 10) / stride
             out[VIDEO_KEY] = gif_bytes(frames[::stride] + frames[-1:], fps)
             self._next_video = time.monotonic() + self.video_every_s
         return out
+
+    def _act(self, obs: np.ndarray) -> np.ndarray:
+        return self.actor.act(obs, explore=False)
 
     def close(self) -> None:
         self.env.close()

@@ -22,16 +22,11 @@ import math
 
 import numpy as np
 
-from robogym_ray.envs.base import SERVER_RESTARTED
+from robogym_ray.envs.outcomes import NOT_THE_POLICY, SUCCESS
 from robogym_ray.errors import ConfigError
 
-ROBOT_ERROR = "robot_error"
-"""Final status of an episode a rollout worker abandons after a robot error."""
 FIRST_SEED = 2**20
 """Lowest reset seed a worker draws: evaluation seeds stay below it."""
-SUCCESS = "success"
-NOT_THE_POLICY = frozenset({SERVER_RESTARTED, ROBOT_ERROR})
-"""Episode ends that say nothing about the start: they are neither kept nor counted."""
 
 
 class FailedStartRevisits:

@@ -19,9 +19,9 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from robogym_ray.experience.revisits import ROBOT_ERROR, FailedStartRevisits
-from robogym_ray.envs.base import SERVER_RESTARTED
+from robogym_ray.envs.outcomes import ROBOT_ERROR, SERVER_RESTARTED
 from robogym_ray.errors import ConfigError, RobotServerError
+from robogym_ray.experience.revisits import FailedStartRevisits
 from robogym_ray.learner.actor import PolicyActor, to_env_action
 from robogym_ray.learner.config import D4PGConfig
 from robogym_ray.learner.nstep import NStepAccumulator, Transition, stack_transitions

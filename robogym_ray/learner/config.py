@@ -13,7 +13,7 @@ discounted returns inside it, and atoms outside the real range are wasted resolu
 Defaults follow DeepMind Acme's D4PG (n-step 5, 51 atoms, batch 256, hard target copies every
 100 learner steps, global-norm clipping at 40), except that replay is prioritized (Ape-X).
 Target networks: hard copies by default (``target_tau = 0``); set ``target_tau > 0`` for Polyak
-averaging every step (the Pendulum-v1 preset in ``run_local`` uses 0.005, as TD3 does).
+averaging every step (the Pendulum-v1 preset in ``training.local`` uses 0.005, as TD3 does).
 """
 
 from __future__ import annotations

@@ -10,13 +10,13 @@ from __future__ import annotations
 
 import copy
 import os
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 import torch
 from torch import nn
 
+from robogym_ray.learner import checkpoint
 from robogym_ray.learner.config import D4PGConfig
 from robogym_ray.learner.distributional import (
     categorical_cross_entropy,
@@ -53,7 +53,6 @@ def linear_ramp(step: int, start: int, length: int, begin: float, end: float) ->
     return begin + frac * (end - begin)
 
 
-REPLAY_SUFFIX = ".replay.npz"
 """Appended to a checkpoint's path for the file holding its replay buffer."""
 
 
@@ -240,24 +239,11 @@ class D4PGLearner:
         self.policy.load_state_dict({k: torch.as_tensor(v) for k, v in weights.items()})
 
     def save(self, path: str | os.PathLike, include_replay: bool = False) -> None:
-        """Write networks, targets, optimizers, counters to ``path`` (replay: + REPLAY_SUFFIX)."""
-        nets = ("policy", "critic", "target_policy", "target_critic", "policy_average")
-        state = {
-            "nets": {
-                name: getattr(self, name).state_dict()
-                for name in nets
-                if getattr(self, name) is not None
-            },
-            "opts": {
-                "policy": self.policy_opt.state_dict(),
-                "critic": self.critic_opt.state_dict(),
-            },
-            "num_steps": self.num_steps,
-            "torch_rng": torch.get_rng_state(),
-        }
-        torch.save(state, path)
+        """Write networks, targets, optimizers, counters to ``path`` and, with
+        ``include_replay``, the replay beside it (layout: ``learner/checkpoint.py``)."""
+        checkpoint.write_atomic(path, checkpoint.learner_state(self))
         if include_replay:
-            np.savez(str(path) + REPLAY_SUFFIX, **self.replay.state_dict())
+            checkpoint.write_replay(checkpoint.replay_path(path), self.replay.state_dict())
 
     def restore(self, path: str | os.PathLike) -> None:
         """Load what :meth:`save` wrote; the replay too when its file exists.
@@ -266,7 +252,7 @@ class D4PGLearner:
         restored online policy; one with an average restored by a learner that keeps none
         drops it.
         """
-        state = torch.load(path, map_location=self.device, weights_only=True)
+        state = checkpoint.read(path, self.device)
         nets = state["nets"]
         for name, sd in nets.items():
             if getattr(self, name) is not None:
@@ -277,7 +263,5 @@ class D4PGLearner:
         self.critic_opt.load_state_dict(state["opts"]["critic"])
         self.num_steps = int(state["num_steps"])
         torch.set_rng_state(state["torch_rng"].cpu())
-        replay_path = Path(str(path) + REPLAY_SUFFIX)
-        if replay_path.exists():
-            with np.load(replay_path, allow_pickle=True) as data:
-                self.replay.load_state_dict(dict(data))
+        if checkpoint.replay_path(path).exists():
+            self.replay.load_state_dict(checkpoint.read_replay(checkpoint.replay_path(path)))

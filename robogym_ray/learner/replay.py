@@ -169,7 +169,7 @@ class PrioritizedReplay:
             "priorities": self.sum_tree.leaves(np.arange(self.size)),
             "counters": np.array([self.cursor, self.size, self.total_added], np.int64),
             "max_priority": np.array(self.max_priority),
-            "rng_state": np.array(self.rng.bit_generator.state, dtype=object),
+            "rng_state": self.rng.bit_generator.state,  # a dict: checkpoint.py stores it as JSON
         }
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
@@ -182,4 +182,4 @@ class PrioritizedReplay:
         self.min_tree.update(idx, state["priorities"])
         self.cursor, self.size, self.total_added = (int(v) for v in state["counters"])
         self.max_priority = float(state["max_priority"])
-        self.rng.bit_generator.state = state["rng_state"].item()
+        self.rng.bit_generator.state = state["rng_state"]

@@ -13,12 +13,12 @@ from pathlib import Path
 
 import numpy as np
 
+from robogym_ray.learner.checkpoint import CHECKPOINT_NAME, replay_path
 from robogym_ray.learner.config import D4PGConfig
-from robogym_ray.learner.learner import REPLAY_SUFFIX, D4PGLearner
+from robogym_ray.learner.learner import D4PGLearner
+from robogym_ray.learner.rate_limiter import SamplesPerInsert
 
 log = logging.getLogger(__name__)
-
-CHECKPOINT_NAME = "learner.pt"
 
 
 class LearnerService:
@@ -47,7 +47,7 @@ class LearnerService:
         self.checkpoint_every = checkpoint_every
         self.max_steps_per_call = max_steps_per_call
         self.inserted = 0
-        self._debt = 0.0
+        self.limiter = SamplesPerInsert(d4pg.samples_per_insert, d4pg.batch_size)
         self._last_checkpoint_step = 0
         self.restored_from_step = -1
         self._step_time = 0.0
@@ -66,9 +66,8 @@ class LearnerService:
         n = len(batch["reward"])
         self.learner.add(batch, priorities)
         self.inserted += n
-        if self.learner.can_step():
-            self._debt += n * self.config.samples_per_insert / self.config.batch_size
-        return self.train(min(int(self._debt), self.max_steps_per_call))
+        self.limiter.inserted(n, warm=self.learner.can_step())
+        return self.train(self.limiter.take(self.max_steps_per_call))
 
     def train(self, steps: int) -> dict:
         metrics: dict[str, float] = {}
@@ -76,7 +75,6 @@ class LearnerService:
         for _ in range(steps):
             for key, value in self.learner.step().items():
                 metrics[key] = metrics.get(key, 0.0) + value
-        self._debt -= steps
         self._step_time += time.perf_counter() - start
         out = {k: v / steps for k, v in metrics.items()} if steps else {}
         out.update(
@@ -114,13 +112,12 @@ class LearnerService:
             return None
         self.checkpoint_dir.mkdir(parents=True, exist_ok=True)
         final = self.checkpoint_dir / CHECKPOINT_NAME
-        replay = Path(f"{final}{REPLAY_SUFFIX}")
         tmp = self.checkpoint_dir / f".{CHECKPOINT_NAME}.{os.getpid()}.tmp"
-        self.learner.save(tmp, include_replay=include_replay)
+        self.learner.save(tmp, include_replay=include_replay)  # both renamed into place last
         if include_replay:
-            os.replace(f"{tmp}{REPLAY_SUFFIX}", replay)
+            os.replace(replay_path(tmp), replay_path(final))
         else:
-            replay.unlink(missing_ok=True)
+            replay_path(final).unlink(missing_ok=True)
         os.replace(tmp, final)
         self._last_checkpoint_step = self.version
         return str(final)

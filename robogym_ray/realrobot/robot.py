@@ -19,10 +19,10 @@ from typing import Any
 
 import numpy as np
 
-from robogym_ray.realrobot.safety import SafetyConfig, SafetyFilter
-from robogym_ray.protocol.client import Deadlines, RobotServerClient
 from robogym_ray.errors import RobotServerError
 from robogym_ray.protocol import robot_server_pb2 as pb
+from robogym_ray.protocol.client import Deadlines, RobotServerClient
+from robogym_ray.realrobot.safety import SafetyConfig, SafetyFilter
 
 log = logging.getLogger(__name__)
 

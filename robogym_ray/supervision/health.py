@@ -11,10 +11,10 @@ import math
 import time
 from dataclasses import dataclass
 
-from robogym_ray.supervision.restart_policy import FaultCause
-from robogym_ray.protocol.client import Deadlines, RobotServerClient
 from robogym_ray.errors import RobotServerError
 from robogym_ray.protocol import robot_server_pb2 as pb
+from robogym_ray.protocol.client import Deadlines, RobotServerClient
+from robogym_ray.supervision.restart_policy import FaultCause
 
 
 @dataclass(frozen=True)

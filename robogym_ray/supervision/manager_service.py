@@ -15,12 +15,12 @@ from typing import Any
 
 import grpc
 
-from robogym_ray.supervision.launch import parse_launch_cmd
-from robogym_ray.supervision.server_host import ServerSpec
-from robogym_ray.supervision.supervisor import Supervisor
 from robogym_ray.errors import RoboGymRayError
 from robogym_ray.protocol import server_manager_pb2 as sm
 from robogym_ray.protocol import server_manager_pb2_grpc as sm_grpc
+from robogym_ray.supervision.launch import parse_launch_cmd
+from robogym_ray.supervision.server_host import ServerSpec
+from robogym_ray.supervision.supervisor import Supervisor
 
 log = logging.getLogger(__name__)
 

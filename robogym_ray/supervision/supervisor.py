@@ -17,10 +17,10 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
 from typing import Any, Protocol
 
+from robogym_ray.errors import RobotServerError
 from robogym_ray.supervision.health import probe, wait_ready
 from robogym_ray.supervision.restart_policy import FaultCause, RestartBook, RestartPolicy
 from robogym_ray.supervision.server_host import RobotServerHost, ServerSpec
-from robogym_ray.errors import RobotServerError
 
 log = logging.getLogger(__name__)
 

@@ -8,10 +8,10 @@ from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any
 
-from robogym_ray.training.config import TrainConfig
 from robogym_ray.config import add_config_args, merge_config
 from robogym_ray.errors import ConfigError
 from robogym_ray.robots.emulation import EmulationConfig
+from robogym_ray.training.config import TrainConfig
 
 SECTIONS = ("train", "d4pg", "emulation")
 """Keys a config file may hold: TrainConfig, D4PGConfig and (for --emulated-workers)

@@ -24,17 +24,19 @@ import ray
 from ray.exceptions import RayActorError
 
 from robogym_ray.distributed import remote
-from robogym_ray.training import setup
-from robogym_ray.experience.evaluator import VIDEO_KEY, status_rates
 from robogym_ray.distributed.real_client import RealRobotClientFactory
-from robogym_ray.experience.rollout import RolloutResult, box_dims, make_gym_env
-from robogym_ray.training.stats import RunStats, WorkerSlot
-from robogym_ray.training.selection import SnapshotSelector
-from robogym_ray.training.presets import TaskPreset, d4pg_for, resolve_task, safety_for
-from robogym_ray.training.config import TrainConfig
+from robogym_ray.envs.outcomes import rates
+from robogym_ray.envs.registration import variant_id
 from robogym_ray.errors import ConfigError
+from robogym_ray.experience.evaluator import VIDEO_KEY
+from robogym_ray.experience.rollout import RolloutResult, box_dims, make_gym_env
 from robogym_ray.learner.config import D4PGConfig
 from robogym_ray.robots.emulation import EmulationConfig
+from robogym_ray.training import setup
+from robogym_ray.training.config import TrainConfig
+from robogym_ray.training.presets import TaskPreset, d4pg_for, resolve_task, safety_for
+from robogym_ray.training.selection import SnapshotSelector
+from robogym_ray.training.stats import RunStats, WorkerSlot
 
 log = logging.getLogger(__name__)
 
@@ -159,7 +161,7 @@ class TrainingRun:
         """A Rob-variant env that reaches the robot only through its real-robot actor."""
         address = self.cfg.real_robot[k]
         name = f"real-{self.run_dir.name}-{k}"
-        env_id = setup.real_env_id(self.preset.env_id)
+        env_id = variant_id(self.preset.env_id, "rob")
         self.real_robots.append(remote.start_real_robot(name, address, safety_for(env_id)))
         kwargs = {"rs_address": address, "client_factory": RealRobotClientFactory(name)}
         return make_gym_env(env_id, kwargs)
@@ -297,11 +299,10 @@ class TrainingRun:
         learner_steps = s.learner.get("learner_steps", 0.0)
         # No rate before the first finished episode: a 0 there would read as "never succeeds".
         statuses = list(s.statuses)
-        out = {f"train/{k}": v for k, v in status_rates(statuses).items()} if statuses else {}
+        out = {f"train/{k}": v for k, v in rates(statuses).items()} if statuses else {}
         out.update({f"eval/{k.removeprefix('eval_')}": v for k, v in s.eval.items()})
         if s.revisit_statuses:
-            rates = status_rates(list(s.revisit_statuses))
-            out["explore/revisit_success_rate"] = rates["success_rate"]
+            out["explore/revisit_success_rate"] = rates(s.revisit_statuses)["success_rate"]
         if self.selector is not None and self.selector.best is not None:
             out["eval/best_snapshot_success_rate"] = self.selector.best[0]
         out.update(

@@ -17,15 +17,13 @@ mostly noise (the winner's curse); more episodes per snapshot make it worth more
 
 from __future__ import annotations
 
-import os
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import torch
 
-BEST_POLICY_NAME = "policy-best.pt"
+from robogym_ray.learner.checkpoint import BEST_POLICY_NAME, write_policy
 
 
 def score(result: Mapping[str, float]) -> tuple[float, float]:
@@ -59,15 +57,7 @@ class SnapshotSelector:
             "return": round(self.best[1], 3),
             "snapshots_scored": self.scored,
         }
-        state = {
-            # The layout of a learner checkpoint's policy part, so evaluate/export read it as one.
-            "nets": {"policy": {k: torch.from_numpy(np.array(v)) for k, v in weights.items()}},
-            "selection": self.record,
-        }
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = self.path.with_suffix(".tmp")
-        torch.save(state, tmp)
-        os.replace(tmp, self.path)
+        write_policy(self.path, weights, selection=self.record)
 
     def summary(self) -> dict[str, Any]:
         return {**self.record, "snapshots_scored": self.scored}

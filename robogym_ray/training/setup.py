@@ -11,20 +11,20 @@ from typing import Any
 
 import numpy as np
 import ray
-import torch
 
 from robogym_ray.distributed import remote
-from robogym_ray.learner.service import CHECKPOINT_NAME
-from robogym_ray.supervision.restart_policy import FaultCause
 from robogym_ray.distributed.provider import SupervisorServerProvider
-from robogym_ray.experience.revisits import FailedStartRevisits
-from robogym_ray.supervision.supervisor import SupervisorConfig
-from robogym_ray.training.config import TrainConfig
 from robogym_ray.errors import ConfigError
+from robogym_ray.experience.revisits import FailedStartRevisits
+from robogym_ray.learner import checkpoint
+from robogym_ray.learner.checkpoint import CHECKPOINT_NAME, replay_path
 from robogym_ray.learner.config import D4PGConfig
-from robogym_ray.learner.learner import REPLAY_SUFFIX, linear_ramp
+from robogym_ray.learner.learner import linear_ramp
 from robogym_ray.learner.networks import DistributionalCritic, Policy
 from robogym_ray.robots.emulation import EmulationConfig
+from robogym_ray.supervision.restart_policy import FaultCause
+from robogym_ray.supervision.supervisor import SupervisorConfig
+from robogym_ray.training.config import TrainConfig
 
 log = logging.getLogger(__name__)
 
@@ -63,13 +63,6 @@ def revisits_for(cfg: TrainConfig, index: int) -> FailedStartRevisits | None:
     return FailedStartRevisits(
         cfg.revisit_failed, cfg.revisit_pool, cfg.revisit_max, seed=cfg.seed + index
     )
-
-
-def real_env_id(env_id: str) -> str:
-    """The Rob variant of a RoboGymRay Sim id (the same task on a real robot)."""
-    if env_id.startswith("RoboGymRay/") and env_id.endswith("Sim-v0"):
-        return env_id[: -len("Sim-v0")] + "Rob-v0"
-    raise ValueError(f"{env_id} has no real-robot variant")
 
 
 def check_resources(cfg: TrainConfig) -> None:
@@ -177,7 +170,7 @@ def seed_checkpoint(
         obs_dim, act_dim, d4pg.critic_hidden, d4pg.num_atoms, d4pg.layer_norm
     )
     try:
-        state = torch.load(source, map_location="cpu", weights_only=True)
+        state = checkpoint.read(source)
         policy.load_state_dict(state["nets"]["policy"])
         critic.load_state_dict(state["nets"]["critic"])
     except Exception as exc:  # noqa: BLE001 - any failure means "not a checkpoint for this run"
@@ -189,9 +182,8 @@ def seed_checkpoint(
         ) from exc
     checkpoint_dir.mkdir(parents=True, exist_ok=True)
     shutil.copy2(source, target)
-    replay = Path(f"{source}{REPLAY_SUFFIX}")
-    if replay.is_file():
-        shutil.copy2(replay, Path(f"{target}{REPLAY_SUFFIX}"))
+    if replay_path(source).is_file():
+        shutil.copy2(replay_path(source), replay_path(target))
     log.info("continuing from %s (step %d)", source, int(state["num_steps"]))
     return True
 

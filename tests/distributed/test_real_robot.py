@@ -77,8 +77,8 @@ def test_safety_filter_clips_limits_and_refuses_malformed_or_jumps() -> None:
 
 
 def test_an_idle_robot_is_probed_and_pauses_when_its_server_dies() -> None:
-    from robogym_ray.realrobot.robot import RealRobot
     from robogym_ray.protocol.client import Deadlines
+    from robogym_ray.realrobot.robot import RealRobot
     from robogym_ray.robots.server import start_robot_server
 
     server = start_robot_server("mir100")

@@ -8,14 +8,15 @@ import numpy as np
 import pytest
 import torch
 
-from robogym_ray.experience.evaluator import Evaluator
-from robogym_ray.learner.service import LearnerService
-from robogym_ray.experience.rollout import make_gym_env
-from robogym_ray.training.selection import BEST_POLICY_NAME, SnapshotSelector
-from robogym_ray.training.config import TrainConfig
 from robogym_ray.errors import ConfigError
+from robogym_ray.experience.evaluator import Evaluator
+from robogym_ray.experience.rollout import make_gym_env
 from robogym_ray.export import load_checkpoint_policy
+from robogym_ray.learner.checkpoint import BEST_POLICY_NAME
 from robogym_ray.learner.config import D4PGConfig
+from robogym_ray.learner.service import LearnerService
+from robogym_ray.training.config import TrainConfig
+from robogym_ray.training.selection import SnapshotSelector
 
 SMALL = D4PGConfig(policy_hidden=(16, 16), critic_hidden=(16, 16), num_atoms=11)
 

@@ -5,13 +5,13 @@ from __future__ import annotations
 
 import pytest
 
+from robogym_ray.errors import ConfigError, UnknownRobotError
+from robogym_ray.protocol import robot_server_pb2 as pb
 from robogym_ray.supervision.health import check_state
 from robogym_ray.supervision.launch import parse_launch_cmd
 from robogym_ray.supervision.restart_policy import FaultCause, RestartBook, RestartPolicy
 from robogym_ray.supervision.server_host import ServerSpec
 from robogym_ray.supervision.supervisor import InProcessSpawner, Supervisor, SupervisorConfig
-from robogym_ray.errors import ConfigError, UnknownRobotError
-from robogym_ray.protocol import robot_server_pb2 as pb
 
 SP = " " * 9
 

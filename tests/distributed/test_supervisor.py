@@ -15,11 +15,11 @@ from typing import Any
 import numpy as np
 import pytest
 
+from robogym_ray.errors import RobotServerError
+from robogym_ray.protocol.client import Deadlines, RobotServerClient
 from robogym_ray.supervision.restart_policy import RestartPolicy
 from robogym_ray.supervision.server_host import ServerSpec
 from robogym_ray.supervision.supervisor import SupervisorConfig
-from robogym_ray.protocol.client import Deadlines, RobotServerClient
-from robogym_ray.errors import RobotServerError
 
 ray = pytest.importorskip("ray")
 pytestmark = [pytest.mark.ray, pytest.mark.usefixtures("ray_cluster")]

@@ -16,12 +16,12 @@ import pytest
 import ray
 
 from robogym_ray.distributed import remote
-from robogym_ray.training import command as train_cmd
-from robogym_ray.training.config import TrainConfig
-from robogym_ray.training.run import run_training
 from robogym_ray.errors import ConfigError
 from robogym_ray.robots.emulation import EmulationConfig
 from robogym_ray.robots.serve import serve_process
+from robogym_ray.training import command as train_cmd
+from robogym_ray.training.config import TrainConfig
+from robogym_ray.training.run import run_training
 
 pytestmark = [pytest.mark.ray, pytest.mark.slow, pytest.mark.usefixtures("ray_cluster")]
 

@@ -10,16 +10,17 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from robogym_ray.experience.evaluator import Evaluator, status_rates
-from robogym_ray.learner.service import LearnerService
+from robogym_ray.envs.outcomes import SERVER_RESTARTED
+from robogym_ray.envs.outcomes import rates as status_rates
+from robogym_ray.errors import ConfigError
+from robogym_ray.experience.evaluator import Evaluator
 from robogym_ray.experience.rollout import RolloutWorker, box_dims, make_gym_env
+from robogym_ray.learner.checkpoint import REPLAY_SUFFIX
+from robogym_ray.learner.config import D4PGConfig
+from robogym_ray.learner.service import LearnerService
+from robogym_ray.protocol.client import Deadlines
 from robogym_ray.training.config import TrainConfig
 from robogym_ray.training.setup import noise_scale, seed_checkpoint
-from robogym_ray.envs.base import SERVER_RESTARTED
-from robogym_ray.protocol.client import Deadlines
-from robogym_ray.errors import ConfigError
-from robogym_ray.learner.config import D4PGConfig
-from robogym_ray.learner.learner import REPLAY_SUFFIX
 
 SMALL = D4PGConfig(
     policy_hidden=(32, 32),
@@ -155,6 +156,7 @@ def test_evaluator_reports_rates() -> None:
         "success_rate": 0.5,
         "collision_rate": 0.25,
         "timeout_rate": 0.25,
+        "other_rate": 0.0,
     }
 
 

@@ -9,9 +9,9 @@ import grpc
 import numpy as np
 import pytest
 
-from robogym_ray.protocol.client import Deadlines, RobotServerClient, check_action
 from robogym_ray.errors import InvalidActionError, RobotServerError
 from robogym_ray.protocol import robot_server_pb2 as pb
+from robogym_ray.protocol.client import Deadlines, RobotServerClient, check_action
 from tests.envs.conftest import success_for
 
 

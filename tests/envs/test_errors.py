@@ -10,7 +10,6 @@ import numpy as np
 import pytest
 
 import robogym_ray  # noqa: F401
-from robogym_ray.protocol.client import Deadlines
 from robogym_ray.envs.mir100_tasks import NoObstacleNavigationMir100, ObstacleAvoidanceMir100
 from robogym_ray.envs.servers import EmbeddedLease, EmbeddedServerProvider, ServerProvider
 from robogym_ray.envs.ur_tasks import EmptyEnvironmentUR
@@ -21,6 +20,7 @@ from robogym_ray.errors import (
     RobotServerError,
 )
 from robogym_ray.protocol import robot_server_pb2 as pb
+from robogym_ray.protocol.client import Deadlines
 from tests.envs.conftest import success_for
 from tests.envs.test_client import free_port
 

@@ -12,13 +12,13 @@ from collections.abc import Iterator
 import pytest
 
 from robogym_ray.cli import main as cli_main
+from robogym_ray.envs.outcomes import category
+from robogym_ray.envs.registration import variant_id
 from robogym_ray.errors import ConfigError
 from robogym_ray.evaluation import (
     EvaluationConfig,
-    category,
     evaluate,
     serve_args,
-    variant_id,
     write_result,
 )
 from robogym_ray.export import export_policy

@@ -15,7 +15,7 @@ import pytest
 
 from robogym_ray.learner.actor import PolicyActor
 from robogym_ray.learner.config import D4PGConfig
-from robogym_ray.learner.run_local import PRESETS, RunConfig, evaluate, train
+from robogym_ray.training.local import PRESETS, RunConfig, evaluate, train
 
 pytest.importorskip("gymnasium.envs.classic_control")
 

@@ -1,10 +1,11 @@
-"""run_local's CLI: presets, overrides and field docstrings as help."""
+"""The single-process trainer's CLI (python -m robogym_ray.training.local): presets,
+overrides and field docstrings as help."""
 
 from __future__ import annotations
 
 from robogym_ray.config import field_docs
 from robogym_ray.learner.config import D4PGConfig
-from robogym_ray.learner.run_local import PRESETS, build_parser, parse_args
+from robogym_ray.training.local import PRESETS, build_parser, parse_args
 
 
 def test_preset_applies_and_flags_override_it() -> None:
@@ -17,8 +18,7 @@ def test_preset_applies_and_flags_override_it() -> None:
             "--critic-hidden",
             "8",
             "8",
-            "--prioritized",
-            "false",
+            "--no-prioritized",
         ]
     )
     assert run.steps == 10 and run.env == "Pendulum-v1"

@@ -1,6 +1,6 @@
 """Single-process D4PG on any Gymnasium id, with the classes the Ray program uses.
 
-    python -m robogym_ray.learner.run_local --env Pendulum-v1 --steps 20000 --seed 0
+    python -m robogym_ray.training.local --env Pendulum-v1 --steps 20000 --seed 0
 
 One actor (PolicyActor + NStepAccumulator) feeds the D4PGLearner's replay; the learner takes
 ``samples_per_insert / batch_size`` steps per inserted transition and the actor pulls weights
@@ -14,39 +14,24 @@ import dataclasses
 import json
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
 
-from robogym_ray.config import field_docs
+from robogym_ray.config import add_config_args, merge_config
+from robogym_ray.experience.episodes import greedy_episode
 from robogym_ray.learner.actor import PolicyActor, to_env_action
 from robogym_ray.learner.config import D4PGConfig
 from robogym_ray.learner.learner import D4PGLearner
 from robogym_ray.learner.nstep import NStepAccumulator, stack_transitions
+from robogym_ray.learner.rate_limiter import SamplesPerInsert
+from robogym_ray.training.presets import TASKS
 
-# Tuned settings per env id, applied under --preset auto; explicit flags still win.
-PRESETS: dict[str, dict[str, Any]] = {
-    # Rewards in [-16.3, 0], 200-step truncated episodes: support covers the discounted range;
-    # 1 learner step per env step (samples_per_insert == batch_size), as SB3/RLlib do here;
-    # (256, 256) nets cost ~40% less per step than (400, 300) and suffice for this task.
-    "Pendulum-v1": {
-        "policy_hidden": (256, 256),
-        "critic_hidden": (256, 256),
-        "v_min": -1500.0,
-        "v_max": 0.0,
-        "policy_lr": 1e-3,
-        "critic_lr": 1e-3,
-        "samples_per_insert": 256.0,
-        "target_tau": 0.005,
-        "min_replay_size": 1000,
-        "importance_beta_steps": 20_000,
-        "sigma": 0.2,
-        "n_step": 3,
-    },
-}
+PRESETS: dict[str, Mapping[str, Any]] = {"Pendulum-v1": TASKS["pendulum"].d4pg}
+"""Tuned settings per env id (training/presets.py), applied under --preset auto."""
 
 
 @dataclass(frozen=True)
@@ -73,47 +58,27 @@ def build_parser() -> argparse.ArgumentParser:
     """Flags from both dataclasses, with their field docstrings as help."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     for cls in (RunConfig, D4PGConfig):
-        group, docs = parser.add_argument_group(cls.__name__), field_docs(cls)
-        for f in dataclasses.fields(cls):
-            kwargs: dict[str, Any] = {
-                "default": None,
-                "help": f"{docs.get(f.name, '')} (default: {f.default})",
-            }
-            if isinstance(f.default, bool):
-                kwargs["type"] = lambda s: s.lower() in ("1", "true", "yes")
-            elif isinstance(f.default, tuple):
-                kwargs.update(type=int, nargs="+")
-            else:
-                kwargs["type"] = type(f.default)
-            group.add_argument("--" + f.name.replace("_", "-"), dest=f.name, **kwargs)
+        add_config_args(parser.add_argument_group(cls.__name__), cls, only_given=True)
     return parser
 
 
 def parse_args(argv: Sequence[str] | None = None) -> tuple[RunConfig, D4PGConfig]:
-    ns = {k: v for k, v in vars(build_parser().parse_args(argv)).items() if v is not None}
+    given = vars(build_parser().parse_args(argv))
     run_names = {f.name for f in dataclasses.fields(RunConfig)}
-    run = RunConfig(**{k: v for k, v in ns.items() if k in run_names})
-    overrides = {
-        k: (tuple(v) if isinstance(v, list) else v) for k, v in ns.items() if k not in run_names
-    }
+    run = merge_config(RunConfig, {k: v for k, v in given.items() if k in run_names}, "flags")
     preset = PRESETS.get(run.env, {}) if run.preset == "auto" else {}
-    return run, D4PGConfig(**{**preset, **overrides})
+    base = merge_config(D4PGConfig, preset, f"preset {run.env}")
+    overrides = {k: v for k, v in given.items() if k not in run_names}
+    return run, merge_config(D4PGConfig, overrides, "flags", base=base)
 
 
 def evaluate(env_id: str, actor: PolicyActor, episodes: int, seed: int) -> list[float]:
     """Undiscounted returns of ``episodes`` noise-free episodes (seeds seed, seed+1, ...)."""
     env = gym.make(env_id)
-    low, high = env.action_space.low, env.action_space.high
-    returns = []
-    for ep in range(episodes):
-        obs, _ = env.reset(seed=seed + ep)
-        total, done = 0.0, False
-        while not done:
-            action = to_env_action(actor.act(obs, explore=False), low, high)
-            obs, reward, terminated, truncated, _ = env.step(action)
-            total += float(reward)
-            done = terminated or truncated
-        returns.append(total)
+    returns = [
+        greedy_episode(env, lambda obs: actor.act(obs, explore=False), seed + i).ret
+        for i in range(episodes)
+    ]
     env.close()
     return returns
 
@@ -130,8 +95,8 @@ def train(run: RunConfig, cfg: D4PGConfig) -> dict[str, Any]:
     )
     actor.set_weights(learner.get_weights())
     nstep = NStepAccumulator(cfg.n_step, cfg.discount)
-    steps_per_insert = cfg.samples_per_insert / cfg.batch_size
-    credit, episode_return, returns = 0.0, 0.0, []
+    limiter = SamplesPerInsert(cfg.samples_per_insert, cfg.batch_size)
+    episode_return, returns = 0.0, []
     metrics: dict[str, float] = {}
 
     obs, _ = env.reset(seed=run.seed)
@@ -142,11 +107,9 @@ def train(run: RunConfig, cfg: D4PGConfig) -> dict[str, Any]:
         transitions = nstep.push(obs, action, float(reward), next_obs, terminated, truncated)
         if transitions:
             learner.add(stack_transitions(transitions))
-        # Learner steps are earned per inserted transition, only once replay is warm.
-        credit = credit + len(transitions) * steps_per_insert if learner.can_step() else 0.0
-        while credit >= 1.0:
+        limiter.inserted(len(transitions), warm=learner.can_step())
+        for _ in range(limiter.take()):
             metrics = learner.step()
-            credit -= 1.0
         if t % run.weights_sync_period == 0:
             actor.set_weights(learner.get_weights())
         obs = next_obs

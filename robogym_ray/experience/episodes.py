@@ -1,0 +1,70 @@
+"""The one greedy-episode loop: the evaluator, ``robogym-ray evaluate`` and the single-process
+trainer run a policy through an episode with it, so they score episodes the same way."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from robogym_ray.envs.outcomes import final_status
+from robogym_ray.learner.actor import to_env_action
+
+Policy = Callable[[np.ndarray], np.ndarray]
+"""Observation -> action on the policy's [-1, 1] scale (clipped, then mapped to the Box)."""
+
+
+@dataclass
+class GreedyEpisode:
+    seed: int | None
+    final_status: str
+    ret: float
+    length: int
+    target: list[float] | None
+    """The task's target after reset (MiR100: x, y, yaw; UR: x, y, z), if it has one."""
+    obstacles: list[list[float]] | None = None
+    """With ``track``: the cubes the reset placed (``placed_obstacles()``), if any."""
+    path: list[list[float]] | None = None
+    """With ``track``: the robot's position (``position()``) after reset and each step."""
+    frames: list[np.ndarray] = field(default_factory=list)
+    """With ``film``: ``env.render()`` after reset and each step (the env renders rgb_array)."""
+
+
+def greedy_episode(
+    env: Any, policy: Policy, seed: int | None, *, film: bool = False, track: bool = False
+) -> GreedyEpisode:
+    """Run one episode of ``policy`` on ``env`` from ``env.reset(seed=seed)``."""
+    low = env.action_space.low.astype(np.float64)
+    high = env.action_space.high.astype(np.float64)
+    obs, _ = env.reset(seed=seed)
+    task = env.unwrapped
+    target = getattr(task, "target", None)
+    placed = getattr(task, "placed_obstacles", lambda: None)() if track else None
+    episode = GreedyEpisode(
+        seed, "", 0.0, 0,
+        None if target is None else [float(v) for v in np.ravel(target)],
+        None if placed is None else np.round(placed, 4).tolist(),
+        [_where(task)] if track else None,
+    )  # fmt: skip
+    if film:
+        episode.frames.append(env.render())
+    done, truncated, info = False, False, {}
+    while not done:
+        action = np.clip(policy(np.asarray(obs, dtype=np.float32)), -1.0, 1.0)
+        obs, reward, terminated, truncated, info = env.step(to_env_action(action, low, high))
+        episode.ret += float(reward)
+        episode.length += 1
+        done = terminated or truncated
+        if film:
+            episode.frames.append(env.render())
+        if episode.path is not None:
+            episode.path.append(_where(task))
+    episode.final_status = final_status(info, truncated)
+    return episode
+
+
+def _where(task: Any) -> list[float]:
+    position = task.position() if hasattr(task, "position") else None
+    return [] if position is None else [round(float(v), 4) for v in position]
