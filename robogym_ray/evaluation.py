@@ -17,7 +17,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
-import os
 import time
 from collections import Counter
 from collections.abc import Callable, Iterator, Sequence
@@ -212,30 +211,6 @@ def run_episodes(
         )
 
 
-@contextlib.contextmanager
-def real_robot_actor(env_id: str, address: str, token: str | None) -> Iterator[Any]:
-    """A real-robot actor on ``address`` (on a new local Ray if none); yields a client factory."""
-    import ray
-
-    from robogym_ray.distributed import remote
-    from robogym_ray.distributed.real_client import RealRobotClientFactory
-    from robogym_ray.training.presets import safety_for
-
-    started = not ray.is_initialized()
-    if started:
-        ray.init(
-            num_cpus=1, include_dashboard=False, namespace=remote.NAMESPACE, log_to_driver=False
-        )
-    name = f"eval-real-{os.getpid()}-{time.monotonic_ns()}"
-    actor = remote.start_real_robot(name, address, safety_for(env_id), token=token)
-    try:
-        yield RealRobotClientFactory(name, namespace=remote.NAMESPACE)
-    finally:
-        ray.kill(actor)
-        if started:
-            ray.shutdown()
-
-
 def evaluate(policy_path: str | Path, cfg: EvaluationConfig) -> EvaluationResult:
     """Run ``cfg.episodes`` episodes of the policy at ``policy_path`` (see the module docstring)."""
     import gymnasium as gym
@@ -260,6 +235,8 @@ def evaluate(policy_path: str | Path, cfg: EvaluationConfig) -> EvaluationResult
     with contextlib.ExitStack() as stack:
         if cfg.via_actor:
             assert cfg.rs_address is not None
+            from robogym_ray.distributed.real_client import real_robot_actor  # imports Ray
+
             kwargs["client_factory"] = stack.enter_context(
                 real_robot_actor(env_id, cfg.rs_address, cfg.token)
             )

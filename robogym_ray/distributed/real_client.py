@@ -7,7 +7,10 @@ methods of ``robogym_ray.protocol.client.RobotServerClient`` that the envs call.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import contextlib
+import os
+import time
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -88,3 +91,22 @@ class RealRobotClientFactory:
 
     def __call__(self, address: str, **_: Any) -> RealRobotClient:
         return RealRobotClient(ray.get_actor(self.actor_name, namespace=self.namespace), address)
+
+
+@contextlib.contextmanager
+def real_robot_actor(env_id: str, address: str, token: str | None) -> Iterator[Any]:
+    """A real-robot actor on ``address`` (on a new local Ray if none); yields a client factory."""
+    from robogym_ray.distributed import remote  # imports every actor class: only when used
+    from robogym_ray.realrobot.safety import safety_for
+
+    started = not ray.is_initialized()
+    if started:
+        ray.init(num_cpus=1, include_dashboard=False, namespace=NAMESPACE, log_to_driver=False)
+    name = f"eval-real-{os.getpid()}-{time.monotonic_ns()}"
+    actor = remote.start_real_robot(name, address, safety_for(env_id), token=token)
+    try:
+        yield RealRobotClientFactory(name, namespace=NAMESPACE)
+    finally:
+        ray.kill(actor)
+        if started:
+            ray.shutdown()

@@ -8,7 +8,6 @@ on the wire (spec c.2.2). The server's ``state_dict`` is read by name.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
@@ -21,6 +20,7 @@ from robogym_ray.envs.render.ur import draw_ur
 from robogym_ray.errors import ConfigError, InvalidStateError
 from robogym_ray.protocol import robot_server_pb2 as pb
 from robogym_ray.protocol.client import RobotServerClient
+from robogym_ray.robots.ur_model import UR_MODELS
 
 JOINTS = ("base", "shoulder", "elbow", "wrist_1", "wrist_2", "wrist_3")
 POSITION_KEYS = tuple(f"{j}_joint_position" for j in JOINTS)
@@ -44,31 +44,6 @@ KEYS: dict[str, frozenset[str]] = {
     "1moving2points": frozenset(_ROBOT_KEYS + _pose_keys("object_0") + _pose_keys("forearm")),
 }
 """The exact ``state_dict`` key set of each rs_mode (spec c.2.1)."""
-
-
-@dataclass(frozen=True)
-class URModel:
-    """Task-side facts about one UR model (spec e.2)."""
-
-    r: float
-    """robo-gym's target half-ball radius (m)."""
-    min_r: float
-    """Targets closer than this to the base z axis are discarded (shoulder singularity)."""
-    d1: float
-    """Shoulder height above base_link (m)."""
-    reach: float
-    """``|a2| + |a3| + d5`` (m): the stretched-arm distance from the shoulder to the wrist."""
-
-
-UR_TASK_MODELS: dict[str, URModel] = {
-    "ur3": URModel(0.45, 0.2, 0.1519, 0.24365 + 0.21325 + 0.08535),
-    "ur3e": URModel(0.45, 0.2, 0.152, 0.244 + 0.213 + 0.085),
-    "ur5": URModel(0.75, 0.2, 0.089159, 0.425 + 0.39225 + 0.09465),
-    "ur5e": URModel(0.75, 0.2, 0.163, 0.425 + 0.39225 + 0.100),
-    "ur10": URModel(1.3, 0.3, 0.1273, 0.612 + 0.5723 + 0.1157),
-    "ur10e": URModel(1.3, 0.3, 0.181, 0.613 + 0.571 + 0.120),
-    "ur16e": URModel(0.8, 0.3, 0.1807, 0.4784 + 0.36 + 0.11985),
-}
 
 
 def normalize_joints(q: np.ndarray) -> np.ndarray:
@@ -127,12 +102,10 @@ class URTask(RobotServerEnv):
         self, *, ur_model: str = "ur5", fixed_joints: Sequence[str] | None = None, **kwargs: Any
     ) -> None:
         super().__init__(**kwargs)
-        if ur_model not in UR_TASK_MODELS:
-            raise ConfigError(
-                f"unknown ur_model {ur_model!r}; choose from {sorted(UR_TASK_MODELS)}"
-            )
+        if ur_model not in UR_MODELS:
+            raise ConfigError(f"unknown ur_model {ur_model!r}; choose from {sorted(UR_MODELS)}")
         self.ur_model = ur_model
-        self.model = UR_TASK_MODELS[ur_model]
+        self.model = UR_MODELS[ur_model]
         fixed = tuple(self.default_fixed if fixed_joints is None else fixed_joints)
         unknown = set(fixed) - set(JOINTS)
         if unknown:

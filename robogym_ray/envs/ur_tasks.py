@@ -14,7 +14,6 @@ from robogym_ray.envs.base import StepInfo
 from robogym_ray.envs.outcomes import COLLISION, SUCCESS
 from robogym_ray.envs.ur_common import (
     JOINT_MAX,
-    URModel,
     URTask,
     box,
     frame_xyz,
@@ -26,6 +25,7 @@ from robogym_ray.envs.ur_common import (
 from robogym_ray.errors import ConfigError
 from robogym_ray.protocol import robot_server_pb2 as pb
 from robogym_ray.protocol.client import RobotServerClient
+from robogym_ray.robots.ur_model import URModel
 
 PAPER_RADIUS_SCALE = 1.2 / 1.3
 """The paper's UR10 targets lie within 1.2 m; robo-gym's UR10 radius is 1.3 m (spec c.2.4)."""
@@ -45,7 +45,7 @@ def sample_target(rng: np.random.Generator, model: URModel, radius: float) -> np
     while True:
         p = rng.uniform(-radius, radius, 3)
         p[2] = abs(p[2])
-        if np.linalg.norm(p) > radius or np.hypot(p[0], p[1]) < model.min_r:
+        if np.linalg.norm(p) > radius or np.hypot(p[0], p[1]) < model.workspace_min_r:
             continue
         if np.linalg.norm(p - shoulder) <= 0.95 * model.reach:
             return p
@@ -84,7 +84,7 @@ class _TargetTask(URTask):
             self.target = np.asarray(options["ee_target_pose"], dtype=np.float64)[:3]
         else:
             self.target = sample_target(
-                self.np_random, self.model, self.model.r * self.radius_scale
+                self.np_random, self.model, self.model.workspace_r * self.radius_scale
             )
         params = {f"object_0_{a}": float(v) for a, v in zip("xyz", self.target, strict=True)}
         msg = self.set_joints(client, start, {"object_0_function": "fixed_position"}, params)

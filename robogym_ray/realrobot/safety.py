@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from robogym_ray.errors import InvalidActionError
+from robogym_ray.errors import ConfigError, InvalidActionError
 
 TWO_PI = 2 * math.pi
 
@@ -105,3 +105,12 @@ class SafetyFilter:
     def _refuse(self, why: str) -> None:
         self.refused += 1
         raise UnsafeCommandError(f"unsafe command refused: {why}")
+
+
+def safety_for(env_id: str) -> SafetyConfig:
+    """Safety limits for the real robot a task's Rob variant drives (MiR100 twist or UR joints)."""
+    if "Mir100" in env_id:
+        return SafetyConfig.mir100()
+    if "UR" in env_id:
+        return SafetyConfig.ur()
+    raise ConfigError(f"no real-robot safety limits known for {env_id}")

@@ -74,6 +74,11 @@ class URModel:
     """Masses (kg) of base_link_inertia and the six moving links."""
 
     @property
+    def reach(self) -> float:
+        """``|a2| + |a3| + d5`` (m): the stretched-arm distance from the shoulder to the wrist."""
+        return abs(self.a2) + abs(self.a3) + self.d5
+
+    @property
     def dh(self) -> tuple[float, float, float, float, float, float]:
         return (self.d1, self.a2, self.a3, self.d4, self.d5, self.d6)
 

@@ -80,14 +80,3 @@ def d4pg_for(preset: TaskPreset, overrides: Mapping[str, Any] | None = None) -> 
     """D4PGConfig = defaults <- task preset <- user overrides (config file)."""
     base = merge_config(D4PGConfig, preset.d4pg, f"preset {preset.env_id}")
     return merge_config(D4PGConfig, overrides or {}, "d4pg settings", base=base)
-
-
-def safety_for(env_id: str) -> Any:
-    """Safety limits for the real robot a task's Rob variant drives (MiR100 twist or UR joints)."""
-    from robogym_ray.realrobot.safety import SafetyConfig
-
-    if "Mir100" in env_id:
-        return SafetyConfig.mir100()
-    if "UR" in env_id:
-        return SafetyConfig.ur()
-    raise ConfigError(f"no real-robot safety limits known for {env_id}")

@@ -31,10 +31,11 @@ from robogym_ray.errors import ConfigError
 from robogym_ray.experience.evaluator import VIDEO_KEY
 from robogym_ray.experience.rollout import RolloutResult, box_dims, make_gym_env
 from robogym_ray.learner.config import D4PGConfig
+from robogym_ray.realrobot.safety import safety_for
 from robogym_ray.robots.emulation import EmulationConfig
 from robogym_ray.training import setup
 from robogym_ray.training.config import TrainConfig
-from robogym_ray.training.presets import TaskPreset, d4pg_for, resolve_task, safety_for
+from robogym_ray.training.presets import TaskPreset, d4pg_for, resolve_task
 from robogym_ray.training.selection import SnapshotSelector
 from robogym_ray.training.stats import RunStats, WorkerSlot
 

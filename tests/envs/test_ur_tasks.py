@@ -8,8 +8,9 @@ import pytest
 
 import robogym_ray  # noqa: F401
 from robogym_ray.envs.ur_avoidance import RAAD_SEGMENTS, RAAD_START, raad_reference_trajectory
-from robogym_ray.envs.ur_common import KEYS, UR_TASK_MODELS, normalize_joints, to_ros
+from robogym_ray.envs.ur_common import KEYS, normalize_joints, to_ros
 from robogym_ray.envs.ur_tasks import PAPER_RADIUS_SCALE, sample_target
+from robogym_ray.robots.ur_model import UR_MODELS
 
 
 def test_key_sets_match_the_spec():
@@ -22,12 +23,12 @@ def test_ros_order_swaps_base_and_elbow():
 
 @pytest.mark.parametrize("model", ["ur3", "ur5", "ur10", "ur16e"])
 def test_targets_avoid_singular_regions(model):
-    spec = UR_TASK_MODELS[model]
+    spec = UR_MODELS[model]
     rng = np.random.default_rng(0)
-    radius = spec.r * PAPER_RADIUS_SCALE
+    radius = spec.workspace_r * PAPER_RADIUS_SCALE
     pts = np.array([sample_target(rng, spec, radius) for _ in range(500)])
     assert np.all(np.linalg.norm(pts, axis=1) <= radius) and np.all(pts[:, 2] >= 0)
-    assert np.all(np.hypot(pts[:, 0], pts[:, 1]) >= spec.min_r)
+    assert np.all(np.hypot(pts[:, 0], pts[:, 1]) >= spec.workspace_min_r)
     if model == "ur10":
         assert radius == pytest.approx(1.2)
 
