@@ -1,10 +1,19 @@
-"""Driver-side bookkeeping of a training run (plain data; ``training.py`` fills it)."""
+"""A training run's statistics: the counters the loop keeps and the pure functions that turn
+them into TensorBoard scalars, evaluation history and the summary (no Ray: unit-tested alone)."""
 
 from __future__ import annotations
 
-from collections import deque
+from collections import Counter, deque
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from robogym_ray.envs.outcomes import rates
+
+if TYPE_CHECKING:  # the rollout worker imports torch; these counters need none of it
+    from robogym_ray.experience.rollout import Episode, RolloutResult
 
 
 @dataclass
@@ -37,3 +46,99 @@ class RunStats:
     learner: dict[str, float] = field(default_factory=dict)
     eval: dict[str, float] = field(default_factory=dict)
     eval_history: list[dict[str, float]] = field(default_factory=list)
+
+
+def record(stats: RunStats, result: RolloutResult) -> list[Episode]:
+    """Count a worker's result; returns its episodes that count toward the task's rates.
+
+    Revisited starts are harder than the task's own, so they are counted apart (``revisits``,
+    ``revisit_statuses``) and kept out of ``statuses`` and ``returns``.
+    """
+    stats.env_steps += result.steps
+    stats.dropped_steps += result.dropped
+    stats.robot_errors += result.robot_errors
+    stats.worker_steps[result.worker] = stats.worker_steps.get(result.worker, 0) + result.steps
+    counted = []
+    for ep in result.episodes:
+        stats.episodes += 1
+        if ep.revisit:
+            stats.revisits += 1
+            stats.revisit_statuses.append(ep.final_status)
+            continue
+        stats.statuses.append(ep.final_status)
+        stats.returns.append(ep.ret)
+        counted.append(ep)
+    return counted
+
+
+def eval_entry(stats: RunStats, wall_s: float) -> dict[str, float]:
+    """One line of ``eval_history`` for the evaluation now in ``stats.eval``."""
+    return {
+        "wall_s": round(wall_s, 2),
+        "env_steps": stats.env_steps,
+        "learner_steps": int(stats.learner.get("learner_steps", 0)),
+        "return": round(stats.eval["eval_return"], 2),
+        "success_rate": stats.eval["eval_success_rate"],
+        "snapshot_success_rate": stats.eval["eval_snapshot_success_rate"],
+    }
+
+
+def scalars(
+    stats: RunStats,
+    *,
+    wall_s: float,
+    first_learner_step: int,
+    noise_scale: float,
+    weights_versions: Sequence[int],
+    restarts: Mapping[str, int],
+    best_snapshot_rate: float | None = None,
+) -> dict[str, float]:
+    """Everything the run writes to TensorBoard, from its counters."""
+    s, wall = stats, max(1e-9, wall_s)
+    learner_steps = s.learner.get("learner_steps", 0.0)
+    # No rate before the first finished episode: a 0 there would read as "never succeeds".
+    out = {f"train/{k}": v for k, v in rates(s.statuses).items()} if s.statuses else {}
+    out.update({f"eval/{k.removeprefix('eval_')}": v for k, v in s.eval.items()})
+    if s.revisit_statuses:
+        out["explore/revisit_success_rate"] = rates(s.revisit_statuses)["success_rate"]
+    if best_snapshot_rate is not None:
+        out["eval/best_snapshot_success_rate"] = best_snapshot_rate
+    out.update({
+        "train/return_last100": float(np.mean(s.returns)) if s.returns else 0.0,
+        "throughput/env_steps_per_s": s.env_steps / wall,
+        "throughput/learner_steps_per_s": max(0.0, learner_steps - first_learner_step) / wall,
+        "replay/size": s.learner.get("replay_size", 0.0),
+        "replay/mean_priority": s.learner.get("mean_priority", 0.0),
+        "loss/critic": s.learner.get("critic_loss", 0.0),
+        "loss/policy": s.learner.get("policy_loss", 0.0),
+        "learner/mean_q": s.learner.get("mean_q", 0.0),
+        "learner/lr_scale": s.learner.get("lr_scale", 1.0),
+        "explore/noise_scale": noise_scale,
+        "explore/revisit_fraction": s.revisits / max(1, s.episodes),
+        "learner/steps": learner_steps,
+        "weights/lag": learner_steps - min(weights_versions, default=learner_steps),
+        "faults/dropped_steps": float(s.dropped_steps),
+        "faults/learner_failures": float(s.learner_failures),
+        "faults/worker_failures": float(s.worker_failures),
+        "faults/robot_errors": float(s.robot_errors),
+    })  # fmt: skip
+    out.update({f"restarts/{cause}": float(n) for cause, n in restarts.items()})
+    return out
+
+
+def summary(stats: RunStats, final: Mapping[str, float], **facts: Any) -> dict[str, Any]:
+    """``summary.json``: ``facts`` about the run (task, wall_s, checkpoint, ...), the counters,
+    and the final ``scalars`` rounded."""
+    return {
+        **facts,
+        "env_steps": stats.env_steps,
+        "episodes": stats.episodes,
+        "learner_steps": int(final["learner/steps"]),
+        "dropped_steps": stats.dropped_steps,
+        "worker_steps": {str(k): v for k, v in sorted(stats.worker_steps.items())},
+        "robot_errors": stats.robot_errors,
+        "eval_history": stats.eval_history,
+        "final_status_counts": dict(Counter(stats.statuses)),
+        "revisited_episodes": stats.revisits,
+        **{k: round(v, 4) for k, v in final.items()},
+    }

@@ -1,0 +1,175 @@
+"""The training loop, read top to bottom: worker results -> learner, weights -> workers,
+weights -> evaluator, counters -> TensorBoard, until ``total_steps``.
+
+Each arrow is one call: ``RolloutWorker.collect`` (a batch of n-step transitions, through
+Ray's object store) -> ``LearnerService.add`` (insert, then the learner steps it pays for) ->
+``get_weights`` -> ``RolloutWorker.set_weights`` every ``weight_sync_steps`` of a worker's
+steps; ``get_eval_weights`` -> ``Evaluator.evaluate`` every ``eval_interval_s``.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import time
+from collections import deque
+from typing import Any
+
+import ray
+from ray.exceptions import RayActorError
+
+from robogym_ray.experience.evaluator import VIDEO_KEY
+from robogym_ray.experience.rollout import RolloutResult
+from robogym_ray.training import setup, stats
+from robogym_ray.training.program import Program
+from robogym_ray.training.stats import RunStats, WorkerSlot
+
+log = logging.getLogger(__name__)
+
+
+class TrainingLoop:
+    """Drives a built ``Program`` to ``cfg.total_steps``; ``run()`` returns the summary."""
+
+    def __init__(self, program: Program) -> None:
+        self.p, self.cfg = program, program.cfg
+        self.stats = RunStats()
+        self.weights_ref = program.learner.get_weights.remote()
+        self.weights_stale = False
+        self.eval_weights_ref: Any = None
+        self.next_eval_at = 0.0
+
+    def run(self) -> dict[str, Any]:
+        from robogym_ray.training.logger import RunLogger  # imports tensorboard lazily
+
+        cfg, p = self.cfg, self.p
+        logger = RunLogger(p.run_dir, total=cfg.total_steps, progress=cfg.progress)
+        pending = {self._collect(slot): slot for slot in p.workers}
+        learner_calls: deque[Any] = deque()
+        self.started = time.perf_counter()
+        eval_ref = self._start_eval()
+        while pending:
+            [ref], _ = ray.wait(list(pending), num_returns=1)
+            slot = pending.pop(ref)
+            try:
+                result: RolloutResult = ray.get(ref)
+            except RayActorError:
+                self.stats.worker_failures += 1
+                log.warning("rollout worker %d died; it is not replaced", slot.index)
+                continue
+            for ep in stats.record(self.stats, result):
+                logger.scalar("episode/return", ep.ret, self.stats.env_steps)
+                logger.scalar("episode/length", ep.length, self.stats.env_steps)
+            logger.advance(result.steps)
+            if result.batch is not None:
+                learner_calls.append(p.learner.add.remote(result.batch))
+            self._drain_learner(learner_calls, block=len(learner_calls) > 2)
+            self._maybe_sync(slot, result.steps)
+            in_flight = len(pending) * cfg.steps_per_call
+            out_of_time = cfg.max_wall_s is not None and self._wall() > cfg.max_wall_s
+            if self.stats.env_steps + in_flight < cfg.total_steps and not out_of_time:
+                pending[self._collect(slot)] = slot
+            eval_ref = self._poll_eval(eval_ref, logger)
+            if logger.due(cfg.log_every_s):  # scalars cost a supervisor round trip
+                logger.write(self._scalars(), self.stats.env_steps)
+        self._drain_learner(learner_calls, block=True, all_=True)
+        return self._finish(logger)
+
+    def _wall(self) -> float:
+        return time.perf_counter() - self.started
+
+    def _collect(self, slot: WorkerSlot) -> Any:
+        scale = setup.noise_scale(self.cfg, self.stats.env_steps)
+        return slot.handle.collect.remote(self.cfg.steps_per_call, scale)
+
+    def _drain_learner(self, calls: deque[Any], block: bool, all_: bool = False) -> None:
+        while calls and (block or ray.wait([calls[0]], timeout=0)[0]):
+            ref = calls.popleft()
+            try:
+                metrics = ray.get(ref)
+            except RayActorError:
+                # The learner died mid-call; Ray restarts it from its checkpoint. This batch
+                # is lost (counted), the next ones go to the restarted learner.
+                self.stats.learner_failures += 1
+                log.warning("learner actor failed; Ray restarts it from its last checkpoint")
+                continue
+            self.stats.learner.update(metrics)
+            if metrics.get("steps_this_call", 0) > 0:
+                self.weights_stale = True
+            if not all_:
+                block = False
+
+    def _maybe_sync(self, slot: WorkerSlot, steps: int) -> None:
+        slot.steps_since_sync += steps
+        if slot.steps_since_sync >= self.cfg.weight_sync_steps or slot.weights_version < 0:
+            if self.weights_stale:  # fetched only when a worker is due, not per learner call
+                self.weights_ref = self.p.learner.get_weights.remote()
+                self.weights_stale = False
+            slot.handle.set_weights.remote(self.weights_ref)
+            slot.steps_since_sync = 0
+            slot.weights_version = int(self.stats.learner.get("learner_steps", 0))
+
+    def _start_eval(self) -> Any:
+        evaluator = self.p.evaluator
+        if evaluator is None:
+            return None
+        # Its own fetch: with policy averaging the evaluator scores the average, not the
+        # online weights the workers act with.
+        self.eval_weights_ref = self.p.learner.get_eval_weights.remote()  # a selector may keep it
+        self.next_eval_at = time.perf_counter() + self.cfg.eval_interval_s
+        if self.p.selector is not None:
+            # The same episodes for every snapshot: seeds the workers and `evaluate` never use.
+            n, base = self.cfg.select_episodes, self.cfg.seed + 20_000
+            return evaluator.evaluate.remote(self.eval_weights_ref, n, base)
+        return evaluator.evaluate.remote(self.eval_weights_ref)
+
+    def _poll_eval(self, ref: Any, logger: Any) -> Any:
+        if ref is None:  # between two calls (eval_interval_s), or the evaluator is gone
+            due = self.p.evaluator is not None and time.perf_counter() >= self.next_eval_at
+            return self._start_eval() if due else None
+        if not ray.wait([ref], timeout=0)[0]:
+            return ref
+        try:
+            self.stats.eval = ray.get(ref)
+            if (gif := self.stats.eval.pop(VIDEO_KEY, None)) is not None:
+                logger.gif("eval/video", gif, self.stats.env_steps)
+            self.stats.eval_history.append(stats.eval_entry(self.stats, self._wall()))
+            selector = self.p.selector
+            if selector is not None and selector.better(self.stats.eval):
+                weights, version = ray.get(self.eval_weights_ref)
+                selector.keep(self.stats.eval, weights, version, self.stats.env_steps)
+        except RayActorError:
+            log.warning("evaluator failed; evaluation stops")
+            self.p.evaluator = None
+            return None
+        return self._poll_eval(None, logger)
+
+    def _scalars(self) -> dict[str, float]:
+        best = self.p.selector.best if self.p.selector is not None else None
+        return stats.scalars(
+            self.stats,
+            wall_s=self._wall(),
+            first_learner_step=self.p.first_learner_step,
+            noise_scale=setup.noise_scale(self.cfg, self.stats.env_steps),
+            weights_versions=[w.weights_version for w in self.p.workers],
+            restarts=self.p.restart_counts(),
+            best_snapshot_rate=None if best is None else best[0],
+        )
+
+    def _finish(self, logger: Any) -> dict[str, Any]:
+        p = self.p
+        checkpoint = ray.get(p.learner.checkpoint.remote(self.cfg.save_replay))
+        learner_status = ray.get(p.learner.status.remote())
+        wall = self._wall()
+        final = self._scalars()
+        logger.write(final, self.stats.env_steps)
+        logger.close()
+        summary = stats.summary(
+            self.stats, final,
+            task=p.preset.env_id, wall_s=round(wall, 2), checkpoint=checkpoint,
+            restarts=p.restart_counts(),
+            learner_restored_from_step=learner_status["restored_from_step"],
+            best_snapshot=None if p.selector is None else p.selector.summary(),
+            server_nodes=p.server_nodes(), logdir=str(p.run_dir),
+        )  # fmt: skip
+        (p.run_dir / "summary.json").write_text(json.dumps(summary, indent=2))
+        return summary

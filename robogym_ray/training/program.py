@@ -1,0 +1,139 @@
+"""Building a training program: the supervisor, the learner, the rollout workers, the evaluator
+and the real robots of one run, as Ray actors (``distributed/remote.py``), and stopping them."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import asdict
+from pathlib import Path
+from typing import Any
+
+import ray
+
+from robogym_ray.distributed import remote
+from robogym_ray.distributed.real_client import RealRobotClientFactory
+from robogym_ray.envs.registration import variant_id
+from robogym_ray.experience.rollout import box_dims, make_gym_env
+from robogym_ray.learner.config import D4PGConfig
+from robogym_ray.realrobot.safety import safety_for
+from robogym_ray.robots.emulation import EmulationConfig
+from robogym_ray.training import setup
+from robogym_ray.training.config import TrainConfig
+from robogym_ray.training.presets import TaskPreset
+from robogym_ray.training.selection import SnapshotSelector
+from robogym_ray.training.stats import WorkerSlot
+
+
+class Program:
+    """The actors of one run. Built in ``__init__`` (stopped again if any fails to start);
+    ``shutdown`` stops every one of them."""
+
+    def __init__(
+        self, cfg: TrainConfig, d4pg: D4PGConfig, preset: TaskPreset, emulation: EmulationConfig
+    ) -> None:
+        self.cfg, self.d4pg, self.preset, self.emulation = cfg, d4pg, preset, emulation
+        self.run_dir = Path(cfg.logdir) / (
+            cfg.run_name or f"{preset.env_id.split('/')[-1]}-{time.strftime('%Y%m%d-%H%M%S')}"
+        )
+        self.run_dir.mkdir(parents=True, exist_ok=True)
+        setup.check_resources(cfg)
+        self.supervision = setup.start_supervision(cfg, preset.env_id, self.run_dir.name)
+        self.learner: Any = None
+        self.evaluator: Any = None
+        self.workers: list[WorkerSlot] = []
+        self.real_robots: list[Any] = []
+        try:
+            self._start_actors()
+        except BaseException:
+            # Ray would end these actors too once their handles are collected (ownership), but
+            # only when garbage collection gets there; the one cleanup path stops them now.
+            self.shutdown()
+            raise
+
+    def _start_actors(self) -> None:
+        cfg, d4pg, env_id = self.cfg, self.d4pg, self.preset.env_id
+        probe = make_gym_env(env_id)()  # dimensions only: it never resets, so no server
+        self.obs_dim, self.act_dim = box_dims(probe)
+        probe.close()
+        checkpoints = self.run_dir / "checkpoints"
+        if cfg.init_from:
+            setup.seed_checkpoint(cfg.init_from, checkpoints, d4pg, self.obs_dim, self.act_dim)
+        self.learner = remote.LearnerActor.options(
+            num_cpus=cfg.learner_cpus,
+            num_gpus=setup.learner_gpus(cfg),
+            max_restarts=3,
+            max_task_retries=0,
+            name=f"learner-{self.run_dir.name}",
+            namespace=remote.NAMESPACE,
+        ).remote(
+            d4pg, self.obs_dim, self.act_dim, seed=cfg.seed,
+            checkpoint_dir=str(checkpoints), checkpoint_every=cfg.checkpoint_every,
+        )  # fmt: skip
+        # A continued run starts at the checkpoint's step count; rates count this run's steps.
+        self.first_learner_step = ray.get(self.learner.status.remote())["version"]
+        self.workers = self._start_workers()
+        if cfg.evaluator:
+            kwargs = self._env_kwargs(10_000) | setup.evaluator_env_kwargs(cfg, env_id)
+            self.evaluator = remote.EvaluatorActor.options(num_cpus=cfg.evaluator_cpus).remote(
+                make_gym_env(env_id, kwargs), d4pg,
+                seed=cfg.seed + 10_000, video_every_s=cfg.video_interval_s,
+            )  # fmt: skip
+        selecting = cfg.select_episodes and self.evaluator is not None
+        self.selector = SnapshotSelector(checkpoints) if selecting else None
+
+    def _env_kwargs(self, index: int) -> dict[str, Any]:
+        """Sim envs lease their servers from the supervisor; the first ``emulated_workers``
+        lease emulated robots."""
+        if self.supervision is None:
+            return {}
+        emulated = index < self.cfg.emulated_workers
+        return {"provider": self.supervision.provider(self.emulation if emulated else None)}
+
+    def _start_workers(self) -> list[WorkerSlot]:
+        cfg = self.cfg
+        n = cfg.workers + len(cfg.real_robot)
+        sigmas = setup.worker_sigmas(self.d4pg, cfg, n)
+        slots = []
+        for i in range(n):
+            if i < cfg.workers:
+                factory, kind = make_gym_env(self.preset.env_id, self._env_kwargs(i)), "sim"
+            else:
+                factory, kind = self._real_env(i - cfg.workers), "real"
+            handle = remote.RolloutActor.options(num_cpus=cfg.worker_cpus).remote(
+                factory, self.d4pg, index=i, sigma=sigmas[i], seed=cfg.seed + i,
+                random_steps=cfg.random_steps,
+                revisits=setup.revisits_for(cfg, i) if kind == "sim" else None,
+            )  # fmt: skip
+            slots.append(WorkerSlot(i, handle, kind))
+        return slots
+
+    def _real_env(self, k: int) -> Any:
+        """A Rob-variant env that reaches the robot only through its real-robot actor."""
+        address = self.cfg.real_robot[k]
+        name = f"real-{self.run_dir.name}-{k}"
+        env_id = variant_id(self.preset.env_id, "rob")
+        self.real_robots.append(remote.start_real_robot(name, address, safety_for(env_id)))
+        kwargs = {"rs_address": address, "client_factory": RealRobotClientFactory(name)}
+        return make_gym_env(env_id, kwargs)
+
+    def config_record(self) -> dict[str, Any]:
+        """What ``config.json`` holds: a config file ``--config`` reads back."""
+        record = {"train": asdict(self.cfg), "d4pg": asdict(self.d4pg)}
+        if self.cfg.emulated_workers:
+            record["emulation"] = asdict(self.emulation)
+        return record
+
+    def restart_counts(self) -> dict[str, int]:
+        return {} if self.supervision is None else self.supervision.restart_counts()
+
+    def server_nodes(self) -> list[dict[str, Any]]:
+        return [] if self.supervision is None else self.supervision.server_nodes()
+
+    def shutdown(self) -> None:
+        for slot in self.workers:
+            ray.kill(slot.handle)
+        for actor in (self.evaluator, self.learner, *self.real_robots):
+            if actor is not None:
+                ray.kill(actor)
+        if self.supervision is not None:
+            self.supervision.stop()

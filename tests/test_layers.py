@@ -1,0 +1,107 @@
+"""The package's layers, checked from the source: no import cycle between its folders, Ray only
+where actors are defined and driven, and a plain Sim env that pulls in neither Ray nor torch."""
+
+from __future__ import annotations
+
+import ast
+import subprocess
+import sys
+from collections import defaultdict
+from pathlib import Path
+
+PACKAGE = Path(__file__).resolve().parents[1] / "robogym_ray"
+RAY_ALLOWED = {"distributed", "training"}
+"""Folders that may import Ray: the actor definitions and the driver that runs them."""
+
+
+def imports(path: Path) -> set[str]:
+    """Every absolute import in ``path``, lazy (inside functions) ones included."""
+    out = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            out.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            out.add(node.module)
+            if node.module == "robogym_ray":  # `from robogym_ray import envs`
+                out.update(f"robogym_ray.{alias.name}" for alias in node.names)
+    return out
+
+
+def unit(module: str) -> str:
+    """The layer a module belongs to: its folder under robogym_ray/, or a top-level module."""
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else "robogym_ray"
+
+
+def folder_graph() -> dict[str, set[str]]:
+    graph: dict[str, set[str]] = defaultdict(set)
+    for path in PACKAGE.rglob("*.py"):
+        rel = path.relative_to(PACKAGE.parent).with_suffix("")
+        source = unit(".".join(rel.parts))
+        if source == "__init__":
+            continue  # robogym_ray/__init__.py registers the envs; it is the package itself
+        for name in imports(path):
+            if name.startswith("robogym_ray.") and unit(name) != source:
+                graph[source].add(unit(name))
+    return graph
+
+
+def find_cycle(graph: dict[str, set[str]]) -> list[str] | None:
+    state: dict[str, int] = {}  # 1: on the stack, 2: done
+
+    def visit(node: str, stack: list[str]) -> list[str] | None:
+        state[node] = 1
+        for nxt in sorted(graph.get(node, ())):
+            if state.get(nxt) == 1:
+                return [*stack[stack.index(nxt) :], nxt] if nxt in stack else [node, nxt]
+            if nxt not in state and (cycle := visit(nxt, [*stack, nxt])):
+                return cycle
+        state[node] = 2
+        return None
+
+    for start in sorted(graph):
+        if start not in state and (cycle := visit(start, [start])):
+            return cycle
+    return None
+
+
+def test_no_import_cycle_between_folders() -> None:
+    graph = folder_graph()
+    assert {"envs", "learner", "experience", "distributed", "training"} <= set(graph)
+    assert find_cycle(graph) is None, " -> ".join(find_cycle(graph) or [])
+
+
+def test_the_cycle_finder_finds_a_cycle() -> None:
+    assert find_cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == ["a", "b", "c", "a"]
+    assert find_cycle({"a": {"b"}, "b": set()}) is None
+
+
+def test_only_distributed_and_training_import_ray() -> None:
+    offenders = sorted(
+        str(path.relative_to(PACKAGE))
+        for path in PACKAGE.rglob("*.py")
+        if any(name.split(".")[0] == "ray" for name in imports(path))
+        and path.relative_to(PACKAGE).parts[0] not in RAY_ALLOWED
+    )
+    assert offenders == []
+
+
+def test_the_low_layers_stay_low() -> None:
+    graph = folder_graph()
+    assert graph["learner"] <= {"errors", "config"}, graph["learner"]
+    assert graph["protocol"] <= {"errors"}, graph["protocol"]
+    assert graph["envs"] <= {"errors", "protocol", "robots", "config"}, graph["envs"]
+    assert "distributed" not in graph["experience"] | graph["supervision"] | graph["realrobot"]
+
+
+def test_a_sim_env_imports_neither_ray_nor_torch() -> None:
+    code = (
+        "import sys, gymnasium as gym, robogym_ray.envs\n"
+        "env = gym.make('RoboGymRay/ObstacleAvoidanceMir100Sim-v0')\n"
+        "env.reset(seed=0); env.step(env.action_space.sample()); env.close()\n"
+        "print(sorted(m for m in ('ray', 'torch') if m in sys.modules))\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True
+    )
+    assert done.stdout.strip().splitlines()[-1] == "[]"
