@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from robogym_ray.envs.outcomes import final_status
-from robogym_ray.learner.actor import to_env_action
+from robogym_ray.learner.behaviour import to_env_action
 
 Policy = Callable[[np.ndarray], np.ndarray]
 """Observation -> action on the policy's [-1, 1] scale (clipped, then mapped to the Box)."""

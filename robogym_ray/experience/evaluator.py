@@ -17,7 +17,7 @@ from robogym_ray.envs.outcomes import rates
 from robogym_ray.envs.render.video import gif_bytes
 from robogym_ray.experience.episodes import greedy_episode
 from robogym_ray.experience.rollout import EnvFactory, box_dims
-from robogym_ray.learner.actor import PolicyActor
+from robogym_ray.learner.behaviour import BehaviourPolicy
 from robogym_ray.learner.config import D4PGConfig
 
 VIDEO_KEY = "eval_video_gif"
@@ -38,7 +38,7 @@ class Evaluator:
     ) -> None:
         self.env = make_env()
         obs_dim, act_dim = box_dims(self.env)
-        self.actor = PolicyActor(obs_dim, act_dim, d4pg.policy_hidden, 0.0, d4pg.layer_norm)
+        self.actor = BehaviourPolicy(obs_dim, act_dim, d4pg.policy_hidden, 0.0, d4pg.layer_norm)
         self.seed = seed
         self.episodes = 0
         self.statuses: deque[str] = deque(maxlen=window)

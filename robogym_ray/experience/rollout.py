@@ -22,7 +22,7 @@ import numpy as np
 from robogym_ray.envs.outcomes import ROBOT_ERROR, SERVER_RESTARTED
 from robogym_ray.errors import ConfigError, RobotServerError
 from robogym_ray.experience.revisits import FailedStartRevisits
-from robogym_ray.learner.actor import PolicyActor, to_env_action
+from robogym_ray.learner.behaviour import BehaviourPolicy, to_env_action
 from robogym_ray.learner.config import D4PGConfig
 from robogym_ray.learner.nstep import NStepAccumulator, Transition, stack_transitions
 
@@ -101,7 +101,7 @@ class RolloutWorker:
         self.low = self.env.action_space.low.astype(np.float64)
         self.high = self.env.action_space.high.astype(np.float64)
         self.sigma = d4pg.sigma if sigma is None else sigma
-        self.actor = PolicyActor(
+        self.actor = BehaviourPolicy(
             obs_dim,
             act_dim,
             d4pg.policy_hidden,

@@ -1,6 +1,6 @@
 """D4PG learner in plain PyTorch (no Ray): networks, distributional math, n-step, replay."""
 
-from robogym_ray.learner.actor import PolicyActor, to_env_action
+from robogym_ray.learner.behaviour import BehaviourPolicy, to_env_action
 from robogym_ray.learner.config import D4PGConfig
 from robogym_ray.learner.learner import D4PGLearner
 from robogym_ray.learner.nstep import NStepAccumulator, Transition, stack_transitions
@@ -10,7 +10,7 @@ __all__ = [
     "D4PGConfig",
     "D4PGLearner",
     "NStepAccumulator",
-    "PolicyActor",
+    "BehaviourPolicy",
     "PrioritizedReplay",
     "Transition",
     "stack_transitions",

@@ -2,7 +2,7 @@
 
     python -m robogym_ray.training.local --env Pendulum-v1 --steps 20000 --seed 0
 
-One actor (PolicyActor + NStepAccumulator) feeds the D4PGLearner's replay; the learner takes
+One actor (BehaviourPolicy + NStepAccumulator) feeds the D4PGLearner's replay; the learner takes
 ``samples_per_insert / batch_size`` steps per inserted transition and the actor pulls weights
 every ``weights_sync_period`` env steps, as a rollout worker would. Ends with one JSON line.
 """
@@ -23,7 +23,7 @@ import numpy as np
 
 from robogym_ray.config import add_config_args, merge_config
 from robogym_ray.experience.episodes import greedy_episode
-from robogym_ray.learner.actor import PolicyActor, to_env_action
+from robogym_ray.learner.behaviour import BehaviourPolicy, to_env_action
 from robogym_ray.learner.config import D4PGConfig
 from robogym_ray.learner.learner import D4PGLearner
 from robogym_ray.learner.nstep import NStepAccumulator, stack_transitions
@@ -72,7 +72,7 @@ def parse_args(argv: Sequence[str] | None = None) -> tuple[RunConfig, D4PGConfig
     return run, merge_config(D4PGConfig, overrides, "flags", base=base)
 
 
-def evaluate(env_id: str, actor: PolicyActor, episodes: int, seed: int) -> list[float]:
+def evaluate(env_id: str, actor: BehaviourPolicy, episodes: int, seed: int) -> list[float]:
     """Undiscounted returns of ``episodes`` noise-free episodes (seeds seed, seed+1, ...)."""
     env = gym.make(env_id)
     returns = [
@@ -90,7 +90,7 @@ def train(run: RunConfig, cfg: D4PGConfig) -> dict[str, Any]:
     obs_dim, act_dim = env.observation_space.shape[0], env.action_space.shape[0]
     low, high = env.action_space.low, env.action_space.high
     learner = D4PGLearner(cfg, obs_dim, act_dim, seed=run.seed)
-    actor = PolicyActor(
+    actor = BehaviourPolicy(
         obs_dim, act_dim, cfg.policy_hidden, cfg.sigma, cfg.layer_norm, seed=run.seed
     )
     actor.set_weights(learner.get_weights())

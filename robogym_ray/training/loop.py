@@ -18,9 +18,9 @@ from typing import Any
 import ray
 from ray.exceptions import RayActorError
 
-from robogym_ray.experience.evaluator import VIDEO_KEY
 from robogym_ray.experience.rollout import RolloutResult
 from robogym_ray.training import setup, stats
+from robogym_ray.training.evals import EvalSchedule
 from robogym_ray.training.program import Program
 from robogym_ray.training.stats import RunStats, WorkerSlot
 
@@ -35,8 +35,7 @@ class TrainingLoop:
         self.stats = RunStats()
         self.weights_ref = program.learner.get_weights.remote()
         self.weights_stale = False
-        self.eval_weights_ref: Any = None
-        self.next_eval_at = 0.0
+        self.evals = EvalSchedule(program, self.stats)
 
     def run(self) -> dict[str, Any]:
         from robogym_ray.training.logger import RunLogger  # imports tensorboard lazily
@@ -46,7 +45,7 @@ class TrainingLoop:
         pending = {self._collect(slot): slot for slot in p.workers}
         learner_calls: deque[Any] = deque()
         self.started = time.perf_counter()
-        eval_ref = self._start_eval()
+        eval_ref = self.evals.start()
         while pending:
             [ref], _ = ray.wait(list(pending), num_returns=1)
             slot = pending.pop(ref)
@@ -68,7 +67,7 @@ class TrainingLoop:
             out_of_time = cfg.max_wall_s is not None and self._wall() > cfg.max_wall_s
             if self.stats.env_steps + in_flight < cfg.total_steps and not out_of_time:
                 pending[self._collect(slot)] = slot
-            eval_ref = self._poll_eval(eval_ref, logger)
+            eval_ref = self.evals.poll(eval_ref, logger, self._wall())
             if logger.due(cfg.log_every_s):  # scalars cost a supervisor round trip
                 logger.write(self._scalars(), self.stats.env_steps)
         self._drain_learner(learner_calls, block=True, all_=True)
@@ -107,41 +106,6 @@ class TrainingLoop:
             slot.handle.set_weights.remote(self.weights_ref)
             slot.steps_since_sync = 0
             slot.weights_version = int(self.stats.learner.get("learner_steps", 0))
-
-    def _start_eval(self) -> Any:
-        evaluator = self.p.evaluator
-        if evaluator is None:
-            return None
-        # Its own fetch: with policy averaging the evaluator scores the average, not the
-        # online weights the workers act with.
-        self.eval_weights_ref = self.p.learner.get_eval_weights.remote()  # a selector may keep it
-        self.next_eval_at = time.perf_counter() + self.cfg.eval_interval_s
-        if self.p.selector is not None:
-            # The same episodes for every snapshot: seeds the workers and `evaluate` never use.
-            n, base = self.cfg.select_episodes, self.cfg.seed + 20_000
-            return evaluator.evaluate.remote(self.eval_weights_ref, n, base)
-        return evaluator.evaluate.remote(self.eval_weights_ref)
-
-    def _poll_eval(self, ref: Any, logger: Any) -> Any:
-        if ref is None:  # between two calls (eval_interval_s), or the evaluator is gone
-            due = self.p.evaluator is not None and time.perf_counter() >= self.next_eval_at
-            return self._start_eval() if due else None
-        if not ray.wait([ref], timeout=0)[0]:
-            return ref
-        try:
-            self.stats.eval = ray.get(ref)
-            if (gif := self.stats.eval.pop(VIDEO_KEY, None)) is not None:
-                logger.gif("eval/video", gif, self.stats.env_steps)
-            self.stats.eval_history.append(stats.eval_entry(self.stats, self._wall()))
-            selector = self.p.selector
-            if selector is not None and selector.better(self.stats.eval):
-                weights, version = ray.get(self.eval_weights_ref)
-                selector.keep(self.stats.eval, weights, version, self.stats.env_steps)
-        except RayActorError:
-            log.warning("evaluator failed; evaluation stops")
-            self.p.evaluator = None
-            return None
-        return self._poll_eval(None, logger)
 
     def _scalars(self) -> dict[str, float]:
         best = self.p.selector.best if self.p.selector is not None else None

@@ -9,7 +9,7 @@ import pytest
 import torch
 
 from robogym_ray.errors import ConfigError
-from robogym_ray.learner.actor import PolicyActor, to_env_action
+from robogym_ray.learner.behaviour import BehaviourPolicy, to_env_action
 from robogym_ray.learner.config import D4PGConfig
 from robogym_ray.learner.learner import D4PGLearner
 
@@ -76,7 +76,7 @@ def test_hard_target_copies_every_period_and_polyak_moves_slightly() -> None:
 def test_weights_reach_the_actor_and_actions_are_bounded() -> None:
     learner = _learner()
     learner.step()
-    actor = PolicyActor(OBS, ACT, (32, 32), sigma=0.5, seed=0)
+    actor = BehaviourPolicy(OBS, ACT, (32, 32), sigma=0.5, seed=0)
     actor.set_weights(learner.get_weights())
     assert all(isinstance(v, np.ndarray) for v in learner.get_weights().values())
     obs = np.ones(OBS, np.float32)

@@ -13,7 +13,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from robogym_ray.learner.actor import PolicyActor
+from robogym_ray.learner.behaviour import BehaviourPolicy
 from robogym_ray.learner.config import D4PGConfig
 from robogym_ray.training.local import PRESETS, RunConfig, evaluate, train
 
@@ -36,7 +36,7 @@ def test_d4pg_learns_pendulum_quickly() -> None:
 
     # Baseline: the same architecture, untrained, on the same evaluation seeds.
     env = gym.make(run.env)
-    untrained = PolicyActor(
+    untrained = BehaviourPolicy(
         env.observation_space.shape[0],
         env.action_space.shape[0],
         cfg.policy_hidden,

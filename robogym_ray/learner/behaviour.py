@@ -1,4 +1,8 @@
-"""CPU policy actor with Gaussian exploration, fed with weights from the learner."""
+"""The behaviour policy: a CPU copy of the learner's policy plus Gaussian exploration noise.
+
+What Acme calls an actor; named for what it is here, because "actor" already means a Ray actor
+(``distributed/``) and the real-robot actor.
+"""
 
 from __future__ import annotations
 
@@ -10,8 +14,8 @@ import torch
 from robogym_ray.learner.networks import Policy
 
 
-class PolicyActor:
-    """Acts with a CPU copy of the policy; each actor can get its own ``sigma`` (Ape-X style).
+class BehaviourPolicy:
+    """Acts with a CPU copy of the policy; each rollout worker can get its own ``sigma`` (Ape-X style).
 
     Actions are on the policy's [-1, 1] scale; :func:`to_env_action` maps them to a Box.
     """
