@@ -15,7 +15,7 @@ from robogym_ray.learner.networks import Policy
 
 
 class BehaviourPolicy:
-    """Acts with a CPU copy of the policy; each rollout worker can get its own ``sigma`` (Ape-X style).
+    """Acts with a CPU copy of the policy; each rollout worker has its own ``sigma`` (Ape-X).
 
     Actions are on the policy's [-1, 1] scale; :func:`to_env_action` maps them to a Box.
     """
