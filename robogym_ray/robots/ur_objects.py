@@ -17,7 +17,7 @@ from scipy.interpolate import splev, splprep
 from scipy.signal import sawtooth
 
 from robogym_ray.errors import InvalidStateError
-from robogym_ray.robots.validation import check_range
+from robogym_ray.robots.validation import check_range, quote
 
 SAMPLE_RATE = 100.0
 """Samples per second of every trajectory."""
@@ -214,7 +214,7 @@ def build_trajectory(
         )
     if function not in FUNCTIONS:
         raise InvalidStateError(
-            f"unknown {prefix}function {function!r}; known: {', '.join(sorted(FUNCTIONS))}"
+            f"unknown {prefix}function {quote(function)}; known: {', '.join(sorted(FUNCTIONS))}"
         )
     names, builder = FUNCTIONS[function]
     missing = [prefix + n for n in names if prefix + n not in float_params]
