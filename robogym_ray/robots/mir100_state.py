@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from robogym_ray.errors import InvalidStateError
+from robogym_ray.robots.validation import check_range
 
 STATE_LEN = 1030
 MIN_SET_STATE_LEN = 6
@@ -44,6 +45,11 @@ GROUPS: Mapping[str, slice] = {
 """Sensor groups (``read_sensors`` keys) and where each goes in the state."""
 
 _FIELD_NAMES = ("x", "y", "yaw")
+MAX_ABS_YAW = 4 * math.pi
+"""SetState refuses a yaw (target, robot, cube) beyond +-this (rad). robo-gym's envs send angles in
+[-pi, pi]; two turns either way leaves room for a client that adds angles without wrapping, while
+a yaw of 1e5 or 3.4e38 (which the target slots would echo back unchanged, and which loses all
+precision when wrapped) is a client bug to report, not a pose."""
 
 
 @dataclass(frozen=True)
@@ -90,15 +96,11 @@ def parse_set_state(state: np.ndarray, max_abs_position: float) -> SetStateReque
 def _pose_at(values: np.ndarray, start: int, what: str, bound: float) -> tuple[float, float, float]:
     pose = tuple(float(v) for v in values[start : start + 3])
     for offset, (name, value) in enumerate(zip(_FIELD_NAMES, pose, strict=True)):
-        index = start + offset
-        if not math.isfinite(value):
-            raise InvalidStateError(
-                f"state[{index}] ({what} {name}) = {value}; expected a finite number"
-            )
-        if name != "yaw" and abs(value) > bound:
-            raise InvalidStateError(
-                f"state[{index}] ({what} {name}) = {value}; expected within [-{bound}, {bound}] m"
-            )
+        field = f"state[{start + offset}] ({what} {name})"
+        if name == "yaw":
+            check_range(field, value, -MAX_ABS_YAW, MAX_ABS_YAW, "rad")
+        else:
+            check_range(field, value, -bound, bound, "m")
     return pose  # type: ignore[return-value]  # length 3 by construction
 
 

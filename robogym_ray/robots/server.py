@@ -15,6 +15,7 @@ from __future__ import annotations
 import logging
 import threading
 import time
+import traceback
 from collections.abc import Mapping, Sequence
 from concurrent import futures
 from dataclasses import dataclass
@@ -31,6 +32,7 @@ from robogym_ray.robots.base import SimRobot, StateRequest, StateSnapshot
 from robogym_ray.robots.command_handler import CommandHandler
 from robogym_ray.robots.registry import make_robot
 from robogym_ray.robots.state_buffer import StateBuffer
+from robogym_ray.robots.validation import clip_text
 
 if TYPE_CHECKING:
     from robogym_ray.robots.emulation import EmulationConfig
@@ -176,6 +178,7 @@ class RobotServerServicer(pb_grpc.RobotServerServicer):
 
     def __init__(self, core: RobotServerCore) -> None:
         self.core = core
+        self._log_limit = LogLimit()
 
     def GetState(self, request: pb.Empty, context: grpc.ServicerContext) -> pb.State:  # noqa: N802
         try:
@@ -210,15 +213,47 @@ class RobotServerServicer(pb_grpc.RobotServerServicer):
 
     def _report(self, context: grpc.ServicerContext, rpc: str, exc: Exception) -> str:
         self.core.calls["rejected"] += 1
-        message = f"{rpc}: {type(exc).__name__}: {exc}"
-        if isinstance(exc, RoboGymRayError):
-            log.warning("rejected %s", message)
-        else:  # a bug of ours, not bad input: keep the traceback
-            log.exception("failed %s", rpc)
+        # Client input may be megabytes long: cut once, then use the cut text everywhere.
+        message = clip_text(f"{rpc}: {type(exc).__name__}: {exc}")
+        suppressed = self._log_limit.allow((rpc, type(exc).__name__))
+        if suppressed is not None:
+            note = f" ({suppressed} similar suppressed)" if suppressed else ""
+            if isinstance(exc, RoboGymRayError):
+                log.warning("rejected %s%s", message, note)
+            else:  # a bug of ours, not bad input: keep the traceback (frames only: bounded)
+                frames = "".join(traceback.format_tb(exc.__traceback__))
+                log.error("failed %s%s\nTraceback:\n%s", message, note, frames)
         # Metadata values must be printable ASCII.
-        safe = message.encode("ascii", "replace").decode("ascii").replace("\n", " ")[:2000]
+        safe = message.encode("ascii", "replace").decode("ascii")
         context.set_trailing_metadata(((ERROR_METADATA_KEY, safe),))
         return message
+
+
+class LogLimit:
+    """At most ``burst`` log lines per kind of failure per ``window_s``; counts the rest.
+
+    A client that repeats one bad call in a loop would otherwise fill the log with one line
+    per call; the first line after a quiet window says how many were left out.
+    """
+
+    def __init__(self, burst: int = 10, window_s: float = 60.0) -> None:
+        self.burst, self.window_s = burst, window_s
+        self._lock = threading.Lock()
+        self._windows: dict[tuple[str, str], tuple[float, int, int]] = {}
+        """kind -> (window start, lines logged in it, lines suppressed since the last one)"""
+
+    def allow(self, kind: tuple[str, str]) -> int | None:
+        """None: do not log; else log, noting this many suppressed lines since the last one."""
+        now = time.monotonic()
+        with self._lock:
+            start, logged, suppressed = self._windows.get(kind, (now, 0, 0))
+            if now - start >= self.window_s:
+                start, logged = now, 0
+            if logged >= self.burst:
+                self._windows[kind] = (start, logged, suppressed + 1)
+                return None
+            self._windows[kind] = (start, logged + 1, 0)
+            return suppressed
 
 
 class _TokenInterceptor(grpc.ServerInterceptor):

@@ -55,6 +55,7 @@ from robogym_ray.robots.ur_state import (
     compose_state,
     sensor_groups,
 )
+from robogym_ray.robots.validation import preview
 
 ROS_JOINT_NAMES = tuple(JOINT_NAMES[i] for i in ROS_FROM_ENV)
 LIMIT_TOLERANCE = 1e-4
@@ -242,9 +243,13 @@ class URArm(SimRobot):
 
     def _joint_goal(self, request: StateRequest) -> np.ndarray:
         """The validated joint goal (env order) of a SetState."""
-        unknown = sorted(k for k in request.state_dict if k not in ALL_KEYS)
+        unknown = [k for k in request.state_dict if k not in ALL_KEYS]
         if unknown:
-            raise InvalidStateError(f"unknown UR state_dict keys {unknown}")
+            # Quoted in part: the message goes into the reply and the log (see validation).
+            raise InvalidStateError(
+                f"unknown UR state_dict keys {preview(unknown)}; known: {len(ALL_KEYS)} keys "
+                f"such as {POSITION_KEYS[0]!r}"
+            )
         missing = [k for k in POSITION_KEYS if k not in request.state_dict]
         if not missing:
             goal = np.array([float(request.state_dict[k]) for k in POSITION_KEYS])

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 from robogym_ray.errors import ConfigError, UnknownRobotError
 from robogym_ray.robots.ur_model import UR_MODELS
 from robogym_ray.robots.ur_state import RS_MODES
+from robogym_ray.robots.validation import check_range
 
 
 @dataclass(frozen=True)
@@ -43,6 +44,12 @@ IGNORED_OPTIONS = frozenset(
 scene (spheres of 0.025 m, frame ``target``); target_mode only matters via rs_mode."""
 _MUST_BE_FALSE = ("real_robot", "use_voxel_occupancy")
 """Accepted only as false: there is no real robot or voxel occupancy behind a simulated arm."""
+
+ACTION_CYCLE_RATES = (1.0, 1000.0)
+"""Accepted ``action_cycle_rate`` (Hz). robo-gym uses 10-25 Hz. Each SendAction simulates one
+action cycle of 125 Hz controller ticks, so a rate of 0.001 Hz would make every call simulate
+1,000 s (125,000 ticks); below 1 Hz an arm is not being controlled any more. Rates above the
+controller's 125 Hz are refused by URConfig with their own message."""
 
 _HANDLED = frozenset(
     {"world_name", "rs_mode", "action_mode", "reference_frame", "max_velocity_scale_factor",
@@ -165,8 +172,8 @@ def parse_options(model: str, scene: str | None, options: Mapping[str, str]) -> 
         )
     if "action_cycle_rate" in opts:
         rate = _float("action_cycle_rate", opts["action_cycle_rate"])
-        if rate <= 0:
-            raise ConfigError(f"option action_cycle_rate={opts['action_cycle_rate']!r} must be > 0")
+        low, high = ACTION_CYCLE_RATES
+        rate = check_range("option action_cycle_rate", rate, low, high, "Hz", ConfigError)
         kwargs["action_cycle"] = 1.0 / rate
     if "objects_controller" in opts:
         kwargs["objects_controller"] = _bool("objects_controller", opts["objects_controller"])

@@ -17,9 +17,22 @@ from scipy.interpolate import splev, splprep
 from scipy.signal import sawtooth
 
 from robogym_ray.errors import InvalidStateError
+from robogym_ray.robots.validation import check_range, quote
 
 SAMPLE_RATE = 100.0
 """Samples per second of every trajectory."""
+MAX_LAP_S = 300.0
+"""Longest stretch of one trajectory (a triangle period, a hold, a spline lap) in seconds. Whole
+laps are precomputed, so this bounds the samples of one piece to 30,000 (720 kB; a
+``z_frequency`` of 1e-5 Hz would need 1e7 samples). robo-gym's envs use 8 s periods and 80-120 s
+spline laps."""
+MAX_SAMPLES = int(MAX_LAP_S * SAMPLE_RATE)
+MAX_ABS_COORDINATE = 10.0
+"""Bound on every object coordinate, box corner, offset and amplitude (m, reference frame). The
+longest UR reaches 1.3 m and parked objects wait 3 m up; 3e38 m is a client bug, not a pose."""
+MAX_SPLINE_POINTS = 1000
+"""Control points of one spline (robo-gym: 10); each redraw of the UR5-workspace spline fits them
+all again."""
 PARK_Z = 3.0
 """Parked objects wait at (i, 0, 3) m in the reference frame (ROS: while the arm moves)."""
 MAX_SPLINE_TRIES = 1000
@@ -56,9 +69,7 @@ def _fixed_position(p: Params, rng: np.random.Generator) -> np.ndarray:
 
 
 def _triangle_wave(p: Params, rng: np.random.Generator) -> np.ndarray:
-    freq = p["z_frequency"]
-    if not freq > 0:
-        raise InvalidStateError(f"triangle_wave needs z_frequency > 0, got {freq}")
+    freq = p["z_frequency"]  # within PARAM_RANGES: one period is <= MAX_SAMPLES samples
     n = max(1, int(SAMPLE_RATE / freq))
     t = np.arange(n) / SAMPLE_RATE
     # width 0.5 makes sawtooth a symmetric triangle wave in [-1, 1] starting at -1.
@@ -159,6 +170,20 @@ FUNCTIONS: dict[str, tuple[tuple[str, ...], Builder]] = {
     ),
 }
 """function name -> (required float params without the ``object_<i>_`` prefix, builder)."""
+_COORDINATE = (-MAX_ABS_COORDINATE, MAX_ABS_COORDINATE, "m")
+_COUNT = (0.0, float(MAX_SAMPLES), "samples")
+PARAM_RANGES: dict[str, tuple[float, float, str]] = {
+    **{n: _COORDINATE for n in ("x", "y", "z", "z_amplitude", "z_offset", *_SPLINE[:6], *_ABC)},
+    # One triangle period is SAMPLE_RATE / f samples: at most MAX_SAMPLES, and at least 2
+    # (above the Nyquist frequency of the 100 Hz sampling the wave is not a triangle any more).
+    "z_frequency": (SAMPLE_RATE / MAX_SAMPLES, SAMPLE_RATE / 2, "Hz"),
+    "n_points": (0.0, float(MAX_SPLINE_POINTS), "points"),  # >= 4 is _spline_counts' check
+    "n_sampling_points": _COUNT,
+    "n_sampling_points_ab": _COUNT,
+    "n_sampling_points_bc": _COUNT,
+    **{f"hold_{t}": (0.0, MAX_LAP_S, "s") for t in "abc"},
+}
+"""Allowed range of each float parameter (low, high, unit), checked before anything is built."""
 UNSUPPORTED = {"fixed_trajectory": "it reads object_trajectories/*.json files of the ROS package"}
 
 
@@ -175,8 +200,9 @@ def build_trajectory(
         like the ROS parameter server keeps the previous parameters).
 
     Raises:
-        InvalidStateError: unknown or unsupported function, missing or non-finite parameters, or
-            parameters that give an empty trajectory.
+        InvalidStateError: unknown or unsupported function, missing parameters, parameters
+            outside ``PARAM_RANGES`` (NaN/inf included), or parameters that give an empty
+            trajectory.
     """
     prefix = f"object_{index}_"
     function = string_params.get(prefix + "function")
@@ -188,16 +214,13 @@ def build_trajectory(
         )
     if function not in FUNCTIONS:
         raise InvalidStateError(
-            f"unknown {prefix}function {function!r}; known: {', '.join(sorted(FUNCTIONS))}"
+            f"unknown {prefix}function {quote(function)}; known: {', '.join(sorted(FUNCTIONS))}"
         )
     names, builder = FUNCTIONS[function]
     missing = [prefix + n for n in names if prefix + n not in float_params]
     if missing:
         raise InvalidStateError(f"{function} for object {index} needs float params {missing}")
-    params = {n: float(float_params[prefix + n]) for n in names}
-    bad = {prefix + n: v for n, v in params.items() if not math.isfinite(v)}
-    if bad:
-        raise InvalidStateError(f"non-finite object parameters: {bad}")
+    params = {n: check_range(prefix + n, float_params[prefix + n], *PARAM_RANGES[n]) for n in names}
     samples = np.asarray(builder(params, rng), dtype=np.float64)
     if samples.ndim != 2 or len(samples) == 0:
         raise InvalidStateError(f"{function} for object {index} gives no samples with {params}")

@@ -1,0 +1,75 @@
+"""Checks and previews for values that come from a client (SetState, launch options).
+
+Robot servers face any client on the network, so what a client sends must neither be applied
+out of a physically sensible range (a yaw of 3.4e38, an object 3e38 m away, a trajectory one
+period of which needs gigabytes) nor be copied in full into a reply or a log line (a 60 MB key
+list would become 60 MB of log). Robots check with ``check_range`` and quote client text with
+``quote`` / ``preview``; the server cuts every message with ``clip_text``. One place, one shape.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Collection
+from heapq import nsmallest
+
+from robogym_ray.errors import InvalidStateError, RoboGymRayError
+
+MAX_MESSAGE_CHARS = 2000
+"""Longest error message put in a reply or a log line (robo-gym's client prints it whole)."""
+MAX_PREVIEW_ITEMS = 5
+"""Client-sent names (unknown keys ...) quoted in one message; the rest are counted."""
+MAX_PREVIEW_ITEM_CHARS = 80
+"""Characters quoted of each of those names."""
+
+
+def check_range(
+    what: str,
+    value: float,
+    low: float,
+    high: float,
+    unit: str = "",
+    error: type[RoboGymRayError] = InvalidStateError,
+) -> float:
+    """Return ``value`` as a float if it is finite and within ``[low, high]``, else raise.
+
+    Args:
+        what: the field as the client knows it (``state[2] (target yaw)``, ``object_0_x``).
+        unit: appended to the range in the message (``m``, ``rad``, ``Hz``).
+        error: the error type to raise (InvalidStateError for SetState, ConfigError for options).
+    """
+    number = float(value)
+    if math.isfinite(number) and low <= number <= high:
+        return number
+    problem = "" if math.isfinite(number) else " (non-finite)"
+    suffix = f" {unit}" if unit else ""
+    raise error(f"{what} = {_number(number)}{problem}; expected within [{low:g}, {high:g}]{suffix}")
+
+
+def _number(value: float) -> str:
+    text = repr(value)
+    # A float32 from the wire: 3e38 arrives as 2.9999999521443642e+38; 7 digits is all it holds.
+    return text if len(text) <= 12 else f"{value:.7g}"
+
+
+def clip_text(text: str, limit: int = MAX_MESSAGE_CHARS) -> str:
+    """``text`` on one line (no log-line injection), at most ``limit`` characters long."""
+    if len(text) > limit:
+        # Cut before anything else touches the text: it may be megabytes long.
+        kept = max(0, limit - len(f"... [{len(text)} chars cut]"))
+        text = f"{text[:kept]}... [{len(text) - kept} chars cut]"
+    return text.replace("\r", " ").replace("\n", " ")
+
+
+def preview(names: Collection[str]) -> str:
+    """A bounded quote of client-sent names, the first few sorted: ``['a', 'b'] (+3 more)``."""
+    shown = [quote(n) for n in nsmallest(MAX_PREVIEW_ITEMS, names)]
+    more = len(names) - len(shown)
+    return "[" + ", ".join(shown) + "]" + (f" (+{more} more)" if more else "")
+
+
+def quote(name: str) -> str:
+    """``repr(name)`` of at most MAX_PREVIEW_ITEM_CHARS characters of a client-sent name."""
+    if len(name) <= MAX_PREVIEW_ITEM_CHARS:
+        return repr(name)
+    return f"{name[:MAX_PREVIEW_ITEM_CHARS]!r}... [{len(name) - MAX_PREVIEW_ITEM_CHARS} chars cut]"
