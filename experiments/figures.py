@@ -197,12 +197,14 @@ def plot_paths(
     _lab(overview)
     for ep in sorted(episodes, key=lambda e: e["final_status"] != "success"):  # failures on top
         _episode(overview, ep, close_up=False)
-    counts = {s: sum(e["final_status"] == s for e in episodes) for s in STATUS_COLOURS}
+    from robogym_ray.envs.outcomes import counts
+
+    found = counts(e["final_status"] for e in episodes)
     overview.set_title(
-        f"{data.get('env_id', '')}: {len(episodes)} episodes, "
-        + ", ".join(f"{n} {s}" for s, n in counts.items() if n),
+        f"{len(episodes)} episodes: " + ", ".join(f"{n} {c}" for c, n in found.items() if n),
         fontsize=9,
     )
+    fig.suptitle(f"{data.get('env_id', '')}  ({data.get('policy', '')})", fontsize=8)
     for i, ep in enumerate(close[:CLOSE_UPS]):
         ax = fig.add_subplot(grid[i // 2, 2 + i % 2])
         _lab(ax)
