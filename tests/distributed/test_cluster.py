@@ -135,7 +135,12 @@ def test_ray_job_submit_runs_a_short_training(temp_dir: str, tmp_path: Path) -> 
             "--no-progress",
             "--no-evaluator",
         ]
-        out = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=400)
+        deadline = time.monotonic() + 90
+        while True:  # the head's job agent starts after its CPUs show: Ray says "try again later"
+            out = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=400)
+            if "No available agent" not in out.stderr or time.monotonic() > deadline:
+                break
+            time.sleep(3)
         assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-3000:]
         assert "succeeded" in out.stdout + out.stderr
     summary = json.loads((tmp_path / "job" / "summary.json").read_text())
