@@ -68,6 +68,8 @@ class SupervisorServerProvider:
     real_time: bool = False
     resources: tuple[tuple[str, float], ...] = ()
     emulation: EmulationConfig | None = None
+    holder: str = ""
+    """Names the lease holder (a training run's worker), so a replacement can release it."""
 
     def acquire(
         self, robot: str, scene: str | None, options: Mapping[str, str], seed: int | None
@@ -85,5 +87,5 @@ class SupervisorServerProvider:
             resources=dict(self.resources),
             emulation=self.emulation,
         )
-        info = ray.get(supervisor.acquire.remote(spec))
+        info = ray.get(supervisor.acquire.remote(spec, self.holder))
         return SupervisorLease(supervisor, info["id"], info["address"], info["generation"])

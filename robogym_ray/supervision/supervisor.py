@@ -101,6 +101,8 @@ class ManagedServer:
     generation: int = 0
     state: str = "running"  # running | restarting | given_up | stopped
     leased: bool = False
+    holder: str = ""
+    """Who holds the lease (a training run's worker): a replacement worker releases it."""
     keep_port: bool = False
     missed_probes: int = 0
     message: str = ""
@@ -122,6 +124,7 @@ class ManagedServer:
             "pid": s.pid if s else 0,
             "node_id": s.node_id if s else "",
             "leased": self.leased,
+            "holder": self.holder,
             "message": self.message,
             "restarts": dict(self.book.counts),
             "recoveries": list(self.recoveries),
@@ -171,7 +174,7 @@ class Supervisor:
         log.info("started %s at %s (pid %d)", sid, server.address, server.pid)
         return entry.info()
 
-    def acquire(self, spec: ServerSpec) -> dict[str, Any]:
+    def acquire(self, spec: ServerSpec, holder: str = "") -> dict[str, Any]:
         """Lease an idle running server made for the same spec, or start a new one."""
         with self._table_lock:
             for entry in self._servers.values():
@@ -181,15 +184,26 @@ class Supervisor:
                     and entry.state == "running"
                     and entry.spec.key() == spec.key()
                 ):
-                    entry.leased = True
+                    entry.leased, entry.holder = True, holder
                     return entry.info()
-        return self.start_server(spec, owner="lease")
+        info = self.start_server(spec, owner="lease")
+        self._servers[info["id"]].holder = holder
+        return {**info, "holder": holder}
 
     def release(self, server_id: str) -> None:
         """End a lease; the server stays up for the next ``acquire``."""
         entry = self._servers.get(server_id)
         if entry is not None:
-            entry.leased = False
+            entry.leased, entry.holder = False, ""
+
+    def release_holder(self, holder: str) -> int:
+        """End every lease ``holder`` has (its process died without releasing); returns how
+        many. The servers stay up for the next ``acquire``, e.g. the holder's replacement."""
+        with self._table_lock:
+            held = [e for e in self._servers.values() if holder and e.leased and e.holder == holder]
+            for entry in held:
+                entry.leased, entry.holder = False, ""
+        return len(held)
 
     # -- faults -------------------------------------------------------------------------------
     def report_fault(

@@ -24,6 +24,13 @@ class TrainConfig:
     the plain simulation."""
     real_robot: tuple[str, ...] = ()
     """HOST:PORT of real robot servers; each adds a rollout worker on the task's Rob variant."""
+    token: str | None = None
+    """Shared token of the --real-robot servers (their `serve --token`); default: the
+    ROBOGYM_RAY_TOKEN environment variable. Never written to config.json."""
+    real_robot_wait_s: float = 60.0
+    """Once total_steps are collected (or max_wall_s has passed), how long to wait for
+    real-robot calls still running; a call that has not returned by then (a paused robot
+    waits for an operator) is abandoned, counted, and its steps are not collected."""
     total_steps: int = 3000
     """Env steps to collect over all workers."""
     max_wall_s: float | None = None
@@ -131,6 +138,7 @@ class TrainConfig:
             (self.steps_per_call >= 1, "steps_per_call", ">= 1"),
             (self.select_episodes >= 0, "select_episodes", ">= 0"),
             (self.eval_interval_s >= 0, "eval_interval_s", ">= 0"),
+            (self.real_robot_wait_s >= 0, "real_robot_wait_s", ">= 0"),
             (self.video_interval_s >= 0, "video_interval_s", ">= 0"),
             (self.evaluator or not self.select_episodes, "select_episodes", "0 without evaluator"),
             (self.weight_sync_steps >= 1, "weight_sync_steps", ">= 1"),

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import logging
+import threading
 import time
 from collections import deque
 from typing import Any
@@ -36,6 +37,9 @@ class TrainingLoop:
         self.weights_ref = program.learner.get_weights.remote()
         self.weights_stale = False
         self.evals = EvalSchedule(program, self.stats)
+        self.stop = threading.Event()
+        """Set (e.g. by a SIGTERM handler) to end the run early, with checkpoint and summary."""
+        self._real_deadline: float | None = None
 
     def run(self) -> dict[str, Any]:
         from robogym_ray.training.logger import RunLogger  # imports tensorboard lazily
@@ -47,13 +51,22 @@ class TrainingLoop:
         self.started = time.perf_counter()
         eval_ref = self.evals.start()
         while pending:
-            [ref], _ = ray.wait(list(pending), num_returns=1)
-            slot = pending.pop(ref)
+            ready = self._wait(pending)
+            if not ready:  # only real-robot calls left, past real_robot_wait_s: paused robots
+                self.stats.abandoned_real_calls += len(pending)
+                log.warning("%d real-robot call(s) did not return; abandoned", len(pending))
+                break
+            slot = pending.pop(ready[0])
             try:
-                result: RolloutResult = ray.get(ref)
+                result: RolloutResult = ray.get(ready[0])
             except RayActorError:
                 self.stats.worker_failures += 1
-                log.warning("rollout worker %d died; it is not replaced", slot.index)
+                slot.alive = not self._done() and p.replace_worker(slot)
+                self.stats.worker_replacements += slot.alive
+                log.warning("rollout worker %d died; %s", slot.index,
+                            "replaced" if slot.alive else "not replaced")  # fmt: skip
+                if slot.alive:
+                    pending[self._collect(slot)] = slot
                 continue
             for ep in stats.record(self.stats, result):
                 logger.scalar("episode/return", ep.ret, self.stats.env_steps)
@@ -63,15 +76,34 @@ class TrainingLoop:
                 learner_calls.append(p.learner.add.remote(result.batch))
             self._drain_learner(learner_calls, block=len(learner_calls) > 2)
             self._maybe_sync(slot, result.steps)
-            in_flight = len(pending) * cfg.steps_per_call
-            out_of_time = cfg.max_wall_s is not None and self._wall() > cfg.max_wall_s
-            if self.stats.env_steps + in_flight < cfg.total_steps and not out_of_time:
+            # Real robots' calls are not counted in flight: a paused one may never return.
+            in_flight = sum(s.kind == "sim" for s in pending.values()) * cfg.steps_per_call
+            if not self._done(in_flight):
                 pending[self._collect(slot)] = slot
             eval_ref = self.evals.poll(eval_ref, logger, self._wall())
             if logger.due(cfg.log_every_s):  # scalars cost a supervisor round trip
                 logger.write(self._scalars(), self.stats.env_steps)
         self._drain_learner(learner_calls, block=True, all_=True)
         return self._finish(logger)
+
+    def _done(self, in_flight: int = 0) -> bool:
+        """Whether collecting should stop: enough steps (counting those in flight), the wall
+        budget spent, or a stop asked for (SIGTERM)."""
+        cfg = self.cfg
+        out_of_time = cfg.max_wall_s is not None and self._wall() > cfg.max_wall_s
+        return (
+            self.stop.is_set() or out_of_time or self.stats.env_steps + in_flight >= cfg.total_steps
+        )
+
+    def _wait(self, pending: dict[Any, WorkerSlot]) -> list[Any]:
+        """The next finished call; once collecting is done and only real-robot calls remain,
+        waits for them at most ``real_robot_wait_s`` (empty list: they did not return)."""
+        if not (self._done() and all(s.kind == "real" for s in pending.values())):
+            return ray.wait(list(pending), num_returns=1)[0]
+        if self._real_deadline is None:
+            self._real_deadline = time.perf_counter() + self.cfg.real_robot_wait_s
+        left = max(0.0, self._real_deadline - time.perf_counter())
+        return ray.wait(list(pending), num_returns=1, timeout=left)[0]
 
     def _wall(self) -> float:
         return time.perf_counter() - self.started
@@ -114,7 +146,7 @@ class TrainingLoop:
             wall_s=self._wall(),
             first_learner_step=self.p.first_learner_step,
             noise_scale=setup.noise_scale(self.cfg, self.stats.env_steps),
-            weights_versions=[w.weights_version for w in self.p.workers],
+            weights_versions=[w.weights_version for w in self.p.workers if w.alive],
             restarts=self.p.restart_counts(),
             best_snapshot_rate=None if best is None else best[0],
         )

@@ -3,6 +3,7 @@ and the real robots of one run, as Ray actors (``distributed/remote.py``), and s
 
 from __future__ import annotations
 
+import os
 import time
 from dataclasses import asdict
 from pathlib import Path
@@ -82,43 +83,66 @@ class Program:
         self.selector = SnapshotSelector(checkpoints) if selecting else None
 
     def _env_kwargs(self, index: int) -> dict[str, Any]:
-        """Sim envs lease their servers from the supervisor; the first ``emulated_workers``
-        lease emulated robots."""
+        """Sim envs lease their servers from the supervisor, as holder ``worker-INDEX``; the
+        first ``emulated_workers`` lease emulated robots."""
         if self.supervision is None:
             return {}
-        emulated = index < self.cfg.emulated_workers
-        return {"provider": self.supervision.provider(self.emulation if emulated else None)}
+        emulated = self.emulation if index < self.cfg.emulated_workers else None
+        return {"provider": self.supervision.provider(emulated, holder=f"worker-{index}")}
 
     def _start_workers(self) -> list[WorkerSlot]:
         cfg = self.cfg
         n = cfg.workers + len(cfg.real_robot)
-        sigmas = setup.worker_sigmas(self.d4pg, cfg, n)
+        self._sigmas = setup.worker_sigmas(self.d4pg, cfg, n)
         slots = []
         for i in range(n):
             if i < cfg.workers:
-                factory, kind = make_gym_env(self.preset.env_id, self._env_kwargs(i)), "sim"
+                slots.append(WorkerSlot(i, self._rollout_actor(i), "sim"))
             else:
-                factory, kind = self._real_env(i - cfg.workers), "real"
-            handle = remote.RolloutActor.options(num_cpus=cfg.worker_cpus).remote(
-                factory, self.d4pg, index=i, sigma=sigmas[i], seed=cfg.seed + i,
-                random_steps=cfg.random_steps,
-                revisits=setup.revisits_for(cfg, i) if kind == "sim" else None,
-            )  # fmt: skip
-            slots.append(WorkerSlot(i, handle, kind))
+                factory = self._real_env(i - cfg.workers)
+                slots.append(WorkerSlot(i, self._rollout_actor(i, factory), "real"))
         return slots
+
+    def _rollout_actor(self, i: int, real_env: Any = None, generation: int = 0) -> Any:
+        cfg = self.cfg
+        factory = real_env or make_gym_env(self.preset.env_id, self._env_kwargs(i))
+        name = f"rollout-{self.run_dir.name}-{i}" + (f"-{generation}" if generation else "")
+        return remote.RolloutActor.options(
+            num_cpus=cfg.worker_cpus, name=name, namespace=remote.NAMESPACE
+        ).remote(
+            factory, self.d4pg, index=i, sigma=self._sigmas[i], seed=cfg.seed + i,
+            random_steps=cfg.random_steps,
+            revisits=setup.revisits_for(cfg, i) if real_env is None else None,
+        )  # fmt: skip
+
+    def replace_worker(self, slot: WorkerSlot) -> bool:
+        """Start a new rollout worker in a simulated worker's place: it leases the server the
+        dead one held (released here). A real robot's worker is never replaced: its robot
+        may need an operator. Returns whether the slot has a live worker again."""
+        if slot.kind != "sim":
+            return False
+        if self.supervision is not None:
+            self.supervision.release_holder(f"worker-{slot.index}")
+        slot.generation += 1
+        slot.handle = self._rollout_actor(slot.index, generation=slot.generation)
+        slot.steps_since_sync, slot.weights_version = 0, -1  # weights before its first call
+        return True
 
     def _real_env(self, k: int) -> Any:
         """A Rob-variant env that reaches the robot only through its real-robot actor."""
         address = self.cfg.real_robot[k]
         name = f"real-{self.run_dir.name}-{k}"
         env_id = variant_id(self.preset.env_id, "rob")
-        self.real_robots.append(remote.start_real_robot(name, address, safety_for(env_id)))
+        token = self.cfg.token or os.environ.get("ROBOGYM_RAY_TOKEN") or None
+        actor = remote.start_real_robot(name, address, safety_for(env_id), token=token)
+        self.real_robots.append(actor)
         kwargs = {"rs_address": address, "client_factory": RealRobotClientFactory(name)}
         return make_gym_env(env_id, kwargs)
 
     def config_record(self) -> dict[str, Any]:
         """What ``config.json`` holds: a config file ``--config`` reads back."""
-        record = {"train": asdict(self.cfg), "d4pg": asdict(self.d4pg)}
+        train = asdict(self.cfg) | ({"token": None} if self.cfg.token else {})
+        record = {"train": train, "d4pg": asdict(self.d4pg)}
         if self.cfg.emulated_workers:
             record["emulation"] = asdict(self.emulation)
         return record

@@ -9,6 +9,8 @@ watches goes to TensorBoard under ``logdir/run_name``; the summary to ``summary.
 from __future__ import annotations
 
 import json
+import signal
+import threading
 from collections.abc import Mapping
 from typing import Any
 
@@ -44,10 +46,23 @@ def run_training(
         if started_ray:
             ray.shutdown()
         raise
+    loop = TrainingLoop(program)
+    previous = _stop_on_sigterm(loop)
     try:
         (program.run_dir / "config.json").write_text(json.dumps(program.config_record(), indent=2))
-        return TrainingLoop(program).run()
+        return loop.run()
     finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
         program.shutdown()
         if started_ray:
             ray.shutdown()
+
+
+def _stop_on_sigterm(loop: TrainingLoop) -> Any:
+    """SIGTERM (e.g. ``ray job stop``, a batch system's time limit) ends the run the way
+    total_steps does: the last checkpoint and summary.json are written. Returns the handler it
+    replaced (None when this is not the main thread, where Python allows no handler)."""
+    if threading.current_thread() is not threading.main_thread():
+        return None
+    return signal.signal(signal.SIGTERM, lambda signum, frame: loop.stop.set())

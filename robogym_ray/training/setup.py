@@ -92,10 +92,16 @@ class Supervision:
     owned: bool
     resources: tuple[tuple[str, float], ...] = ()
 
-    def provider(self, emulation: EmulationConfig | None = None) -> SupervisorServerProvider:
+    def provider(
+        self, emulation: EmulationConfig | None = None, holder: str = ""
+    ) -> SupervisorServerProvider:
         return SupervisorServerProvider(
-            name=self.name, resources=self.resources, emulation=emulation
+            name=self.name, resources=self.resources, emulation=emulation, holder=holder
         )
+
+    def release_holder(self, holder: str) -> int:
+        """End the leases of a worker that died (see ``Supervisor.release_holder``)."""
+        return int(ray.get(self.actor.release_holder.remote(holder), timeout=30))
 
     def restart_counts(self) -> dict[str, int]:
         """Restarts by cause over every server of this supervisor."""

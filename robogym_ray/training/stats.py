@@ -25,6 +25,9 @@ class WorkerSlot:
     kind: str = "sim"
     steps_since_sync: int = 0
     weights_version: int = -1
+    alive: bool = True
+    generation: int = 0
+    """How many times the worker was replaced."""
 
 
 @dataclass
@@ -36,6 +39,9 @@ class RunStats:
     dropped_steps: int = 0
     learner_failures: int = 0
     worker_failures: int = 0
+    worker_replacements: int = 0
+    abandoned_real_calls: int = 0
+    """Real-robot calls still running when the run ended (a paused robot), not collected."""
     robot_errors: int = 0
     worker_steps: dict[int, int] = field(default_factory=dict)
     statuses: deque[str] = field(default_factory=lambda: deque(maxlen=100))
@@ -120,6 +126,7 @@ def scalars(
         "faults/dropped_steps": float(s.dropped_steps),
         "faults/learner_failures": float(s.learner_failures),
         "faults/worker_failures": float(s.worker_failures),
+        "faults/worker_replacements": float(s.worker_replacements),
         "faults/robot_errors": float(s.robot_errors),
     })  # fmt: skip
     out.update({f"restarts/{cause}": float(n) for cause, n in restarts.items()})
@@ -137,6 +144,7 @@ def summary(stats: RunStats, final: Mapping[str, float], **facts: Any) -> dict[s
         "dropped_steps": stats.dropped_steps,
         "worker_steps": {str(k): v for k, v in sorted(stats.worker_steps.items())},
         "robot_errors": stats.robot_errors,
+        "abandoned_real_calls": stats.abandoned_real_calls,
         "eval_history": stats.eval_history,
         "final_status_counts": dict(Counter(stats.statuses)),
         "revisited_episodes": stats.revisits,

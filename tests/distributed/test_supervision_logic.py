@@ -107,3 +107,21 @@ def test_in_process_supervisor_restarts_then_gives_up() -> None:
         assert sup.kill(sid) and not sup.kill(sid)
     finally:
         sup.shutdown()
+
+
+def test_a_dead_holders_leases_are_released_for_its_replacement() -> None:
+    sup = Supervisor(SupervisorConfig(probe_interval_s=0), InProcessSpawner())
+    spec = ServerSpec("mir100", scene="empty")
+    try:
+        first = sup.acquire(spec, holder="worker-0")
+        other = sup.acquire(spec, holder="worker-1")
+        assert first["id"] != other["id"] and first["holder"] == "worker-0"
+        # worker-0 died without releasing: its server is released by holder, not restarted.
+        assert sup.release_holder("worker-0") == 1 and sup.release_holder("worker-0") == 0
+        assert sup.release_holder("") == 0  # an unnamed holder never matches
+        again = sup.acquire(spec, holder="worker-0")
+        assert again["id"] == first["id"] and again["address"] == first["address"]
+        assert len(sup.status()) == 2  # the replacement reused the server: none leaked
+        assert {s["holder"] for s in sup.status()} == {"worker-0", "worker-1"}
+    finally:
+        sup.shutdown()

@@ -4,8 +4,11 @@ from __future__ import annotations
 
 import argparse
 import io
+import json
 import os
 import signal
+import subprocess
+import sys
 import threading
 import time
 from pathlib import Path
@@ -109,7 +112,7 @@ def _kill_when(condition: Any, pid_of: Any, done: threading.Event, log: list[str
         time.sleep(0.5)
 
 
-def test_killing_a_robot_server_and_the_learner_mid_run(tmp_path: Path) -> None:
+def test_killing_a_robot_server_a_worker_and_the_learner_mid_run(tmp_path: Path) -> None:
     run = "faults"
     cfg = TrainConfig(
         task=NAV,
@@ -142,9 +145,14 @@ def test_killing_a_robot_server_and_the_learner_mid_run(tmp_path: Path) -> None:
     def learner_pid() -> int:
         return int(ray.get(learner().status.remote())["pid"])
 
+    def worker_pid() -> int:
+        worker = ray.get_actor(f"rollout-{run}-1", namespace=remote.NAMESPACE)
+        return int(ray.get(worker.pid.remote()))
+
     injectors = [
         threading.Thread(target=_kill_when, args=(servers_up, server_pid, done, log)),
         threading.Thread(target=_kill_when, args=(learner_checkpointed, learner_pid, done, log)),
+        threading.Thread(target=_kill_when, args=(servers_up, worker_pid, done, log)),
     ]
     for t in injectors:
         t.start()
@@ -156,8 +164,12 @@ def test_killing_a_robot_server_and_the_learner_mid_run(tmp_path: Path) -> None:
         done.set()
         for t in injectors:
             t.join()
-    assert sum("killed" in line for line in log) == 2, log
+    assert sum("killed" in line for line in log) == 3, log
     assert summary["env_steps"] >= 3000
+    # The killed rollout worker was replaced (it leased the server the dead one held) and
+    # its replacement collected: both workers' steps are there.
+    assert summary["faults/worker_failures"] == 1 == summary["faults/worker_replacements"]
+    assert summary["worker_steps"]["1"] > 0
     # The robot server's crash was detected, the server restarted and counted with its cause.
     assert summary["restarts"].get("connection", 0) >= 1, summary["restarts"]
     # The worker whose server died ended that episode and dropped its unfinished n-step window,
@@ -169,12 +181,15 @@ def test_killing_a_robot_server_and_the_learner_mid_run(tmp_path: Path) -> None:
     assert summary["learner_steps"] > summary["learner_restored_from_step"]
 
 
+TOKEN = "s3cret"
+
+
 @pytest.fixture
 def real_mir100() -> Any:
-    """`robogym-ray serve --real-time` in its own process: the stand-in for a real MiR100."""
-    with serve_process(
-        ["--robot", "mir100", "--scene", "lab_6x8", "--real-time", "--port", "0"]
-    ) as a:
+    """`robogym-ray serve --real-time --token` in its own process: the stand-in for a real
+    MiR100 on a network, so it wants a token."""
+    args = ["--robot", "mir100", "--scene", "lab_6x8", "--real-time", "--port", "0"]
+    with serve_process([*args, "--token", TOKEN]) as a:
         yield a
 
 
@@ -183,6 +198,7 @@ def test_mixed_sim_and_real_robot_workers(tmp_path: Path, real_mir100: str) -> N
         task=NAV,
         workers=1,
         real_robot=(real_mir100,),
+        token=TOKEN,
         total_steps=600,
         logdir=str(tmp_path),
         run_name="mixed",
@@ -195,6 +211,53 @@ def test_mixed_sim_and_real_robot_workers(tmp_path: Path, real_mir100: str) -> N
     # Worker 1 drove the real-time "real" robot (10 actions/s) through its real-robot actor.
     assert summary["worker_steps"]["0"] > 0 and summary["worker_steps"]["1"] > 0
     assert summary["robot_errors"] == 0
+    config = json.loads((tmp_path / "mixed" / "config.json").read_text())
+    assert config["train"]["token"] is None  # the secret stays out of the run directory
+
+
+def test_a_paused_real_robot_does_not_keep_a_run_from_ending(tmp_path: Path) -> None:
+    """Its server is killed after the robot has driven a while: the real-robot actor pauses
+    the robot (until an operator resumes it) and its worker's calls return nothing; the
+    simulated worker collects the rest and the run ends with a checkpoint and a summary.
+    Before, the paused worker's call counted as steps in flight, so the simulated worker was
+    never re-queued and the run never ended."""
+    cmd = [sys.executable, "-m", "robogym_ray.cli", "serve", "--robot", "mir100",
+           "--scene", "lab_6x8", "--real-time", "--port", "0"]  # fmt: skip
+    server = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    assert server.stdout is not None
+    address = server.stdout.readline().strip().removeprefix("listening on ")
+    cfg = TrainConfig(
+        task=NAV, workers=1, real_robot=(address,), total_steps=2000, steps_per_call=20,
+        logdir=str(tmp_path), run_name="paused", progress=False, evaluator=False,
+        real_robot_wait_s=5.0,
+    )  # fmt: skip
+    seen: list[float] = []
+
+    def robot_has_driven() -> bool:  # the loop started a few seconds ago
+        if not seen and (tmp_path / "paused" / "config.json").exists():
+            seen.append(time.monotonic())
+        return bool(seen) and time.monotonic() - seen[0] > 5
+
+    done = threading.Event()
+    log: list[str] = []
+    killer = threading.Thread(
+        target=_kill_when, args=(robot_has_driven, lambda: server.pid, done, log)
+    )
+    killer.start()
+    started = time.monotonic()
+    try:
+        summary = run_training(cfg)
+    finally:
+        done.set()
+        killer.join()
+        server.kill()
+        server.wait()
+    assert any("killed" in line for line in log), log
+    assert time.monotonic() - started < 300
+    assert summary["env_steps"] >= 2000 and summary["faults/worker_failures"] == 0
+    assert summary["worker_steps"]["1"] > 0 and summary["robot_errors"] >= 1
+    assert Path(summary["checkpoint"]).exists()
+    assert (tmp_path / "paused" / "summary.json").exists()
 
 
 def test_a_run_that_cannot_fit_the_cluster_is_refused(tmp_path: Path) -> None:
