@@ -87,6 +87,16 @@ def temp_dir() -> Iterator[str]:
     shutil.rmtree(path, ignore_errors=True)
 
 
+def agent_ports() -> list[str]:
+    """Free ports for the node's dashboard agent. Its default HTTP port (52365) is one per
+    machine: any other Ray running here (a training, another test session) holds it, and
+    the agent of a node started beside it fails to bind, so `ray job submit` finds none."""
+    return [
+        f"--dashboard-agent-listen-port={free_port()}",
+        f"--dashboard-agent-grpc-port={free_port()}",
+    ]
+
+
 def head_args(port: int, temp_dir: str, cpus: int, dashboard_port: int | None = None) -> list:
     args = [
         "--head",
@@ -95,6 +105,7 @@ def head_args(port: int, temp_dir: str, cpus: int, dashboard_port: int | None = 
         f"--temp-dir={temp_dir}",
         "--min-worker-port=0",
         "--max-worker-port=0",
+        *agent_ports(),
     ]
     if dashboard_port is None:
         return [*args, "--include-dashboard=false"]
@@ -158,6 +169,7 @@ def test_two_nodes_robot_servers_on_the_second(temp_dir: str, tmp_path: Path) ->
             '--resources={"robot_node": 4}',
             "--min-worker-port=0",
             "--max-worker-port=0",
+            *agent_ports(),  # the second node's agent would want the head's port too
         ]
         with ray_node(second, temp_dir):
             wait_for(lambda: cluster_cpus(f"127.0.0.1:{port}", env) >= 2, 90, "the second node")
