@@ -34,10 +34,13 @@ class LearnerService:
         checkpoint_dir: str | None = None,
         checkpoint_every: int = 1000,
         max_steps_per_call: int = 1000,
+        replay_snapshot_every_s: float = 0.0,
     ) -> None:
         """Args:
         checkpoint_dir: where ``learner.pt`` lives; restored from on start when present.
         checkpoint_every: learner steps between checkpoints (0 disables).
+        replay_snapshot_every_s: seconds between checkpoints that also write the replay, so a
+            restarted learner restores it and loses only what came after (0: never).
         max_steps_per_call: cap on learner steps run inside one ``add`` (keeps the actor
             responsive; the debt carries over to the next call).
         """
@@ -50,10 +53,14 @@ class LearnerService:
         self.limiter = SamplesPerInsert(d4pg.samples_per_insert, d4pg.batch_size)
         self._last_checkpoint_step = 0
         self.restored_from_step = -1
+        self.restored_replay = 0
         self._step_time = 0.0
+        self.replay_snapshot_every_s = replay_snapshot_every_s
+        self._next_snapshot = time.monotonic() + replay_snapshot_every_s
         if self.checkpoint_dir is not None and (self.checkpoint_dir / CHECKPOINT_NAME).exists():
             self.learner.restore(self.checkpoint_dir / CHECKPOINT_NAME)
             self.restored_from_step = self._last_checkpoint_step = self.learner.num_steps
+            self.restored_replay = len(self.learner.replay)
             log.warning("learner restored from checkpoint at step %d", self.restored_from_step)
 
     @property
@@ -89,6 +96,9 @@ class LearnerService:
             and self.version - self._last_checkpoint_step >= self.checkpoint_every
         ):
             self.checkpoint()
+        if self.replay_snapshot_every_s > 0 and time.monotonic() >= self._next_snapshot:
+            self.checkpoint(include_replay=True)
+            self._next_snapshot = time.monotonic() + self.replay_snapshot_every_s
         return out
 
     def initial_priorities(self, batch: dict[str, np.ndarray]) -> np.ndarray:
@@ -101,12 +111,15 @@ class LearnerService:
         """What the evaluator scores: the policy average when the learner keeps one."""
         return self.learner.get_eval_weights(), self.version
 
-    def checkpoint(self, include_replay: bool = False) -> str | None:
+    def checkpoint(self, include_replay: bool = False, final: bool = False) -> str | None:
         """Write the checkpoint atomically (a crash mid-write never leaves a broken file).
 
         With ``include_replay`` the replay goes to ``learner.pt.replay.npz`` beside it, so a
-        continued run starts with it; without, a replay file left there is removed, because it
-        would no longer belong to these networks.
+        continued run (or this learner, restarted) starts with it. Without, a replay file left
+        there is removed, because it would no longer belong to these networks - except a
+        snapshot during a run (``replay_snapshot_every_s``): a restart restores it with the
+        newer networks, which only costs the transitions inserted since. The ``final``
+        checkpoint of a run keeps a replay only when asked to.
         """
         if self.checkpoint_dir is None:
             return None
@@ -116,7 +129,7 @@ class LearnerService:
         self.learner.save(tmp, include_replay=include_replay)  # both renamed into place last
         if include_replay:
             os.replace(replay_path(tmp), replay_path(final))
-        else:
+        elif final or self.replay_snapshot_every_s <= 0:
             replay_path(final).unlink(missing_ok=True)
         os.replace(tmp, final)
         self._last_checkpoint_step = self.version
@@ -132,4 +145,6 @@ class LearnerService:
             "version": self.version,
             "inserted": self.inserted,
             "restored_from_step": self.restored_from_step,
+            "total_added": int(self.learner.replay.total_added),
+            "restored_replay": self.restored_replay,
         }

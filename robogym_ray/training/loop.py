@@ -73,6 +73,7 @@ class TrainingLoop:
                 logger.scalar("episode/length", ep.length, self.stats.env_steps)
             logger.advance(result.steps)
             if result.batch is not None:
+                self.stats.transitions_sent += len(result.batch["reward"])
                 learner_calls.append(p.learner.add.remote(result.batch))
             self._drain_learner(learner_calls, block=len(learner_calls) > 2)
             self._maybe_sync(slot, result.steps)
@@ -153,7 +154,7 @@ class TrainingLoop:
 
     def _finish(self, logger: Any) -> dict[str, Any]:
         p = self.p
-        checkpoint = ray.get(p.learner.checkpoint.remote(self.cfg.save_replay))
+        checkpoint = ray.get(p.learner.checkpoint.remote(self.cfg.save_replay, final=True))
         learner_status = ray.get(p.learner.status.remote())
         wall = self._wall()
         final = self._scalars()
@@ -164,6 +165,11 @@ class TrainingLoop:
             task=p.preset.env_id, wall_s=round(wall, 2), checkpoint=checkpoint,
             restarts=p.restart_counts(),
             learner_restored_from_step=learner_status["restored_from_step"],
+            learner_restored_replay=learner_status["restored_replay"],
+            # Sent but not in the replay: lost with a learner that Ray restarted (what came
+            # after its last replay snapshot, and the batch in flight).
+            lost_transitions=self.stats.transitions_sent
+            - (learner_status["total_added"] - p.first_total_added),
             best_snapshot=None if p.selector is None else p.selector.summary(),
             server_nodes=p.server_nodes(), logdir=str(p.run_dir),
         )  # fmt: skip

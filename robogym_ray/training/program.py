@@ -69,9 +69,11 @@ class Program:
         ).remote(
             d4pg, self.obs_dim, self.act_dim, seed=cfg.seed,
             checkpoint_dir=str(checkpoints), checkpoint_every=cfg.checkpoint_every,
+            replay_snapshot_every_s=cfg.replay_snapshot_every_s,
         )  # fmt: skip
         # A continued run starts at the checkpoint's step count; rates count this run's steps.
-        self.first_learner_step = ray.get(self.learner.status.remote())["version"]
+        status = ray.get(self.learner.status.remote())
+        self.first_learner_step, self.first_total_added = status["version"], status["total_added"]
         self.workers = self._start_workers()
         if cfg.evaluator:
             kwargs = self._env_kwargs(10_000) | setup.evaluator_env_kwargs(cfg, env_id)

@@ -40,6 +40,8 @@ class RunStats:
     learner_failures: int = 0
     worker_failures: int = 0
     worker_replacements: int = 0
+    transitions_sent: int = 0
+    """Transitions the workers sent to the learner (its replay should have them all)."""
     abandoned_real_calls: int = 0
     """Real-robot calls still running when the run ended (a paused robot), not collected."""
     robot_errors: int = 0

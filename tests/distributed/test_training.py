@@ -123,6 +123,7 @@ def test_killing_a_robot_server_a_worker_and_the_learner_mid_run(tmp_path: Path)
         progress=False,
         checkpoint_every=50,
         evaluator=False,
+        replay_snapshot_every_s=1.0,
     )
     done = threading.Event()
     log: list[str] = []
@@ -139,8 +140,9 @@ def test_killing_a_robot_server_a_worker_and_the_learner_mid_run(tmp_path: Path)
     def server_pid() -> int:
         return next(s["pid"] for s in ray.get(supervisor().status.remote()) if s["pid"])
 
-    def learner_checkpointed() -> bool:
-        return (tmp_path / run / "checkpoints" / "learner.pt").exists()
+    def learner_checkpointed() -> bool:  # with a replay snapshot of some 500+ transitions
+        snapshot = tmp_path / run / "checkpoints" / "learner.pt.replay.npz"
+        return snapshot.exists() and snapshot.stat().st_size > 100_000
 
     def learner_pid() -> int:
         return int(ray.get(learner().status.remote())["pid"])
@@ -157,8 +159,8 @@ def test_killing_a_robot_server_a_worker_and_the_learner_mid_run(tmp_path: Path)
     for t in injectors:
         t.start()
     try:
-        # A restarted learner restores networks, not replay: a small warm-up lets it train again
-        # within this short run however late the kill lands.
+        # The restarted learner restores its replay snapshot; a small warm-up lets it train
+        # again within this short run however late the kill lands.
         summary = run_training(cfg, {"min_replay_size": 256})
     finally:
         done.set()
@@ -176,9 +178,12 @@ def test_killing_a_robot_server_a_worker_and_the_learner_mid_run(tmp_path: Path)
     # so no transition in replay spans the crash.
     assert summary["final_status_counts"].get("server_restarted", 0) >= 1
     assert summary["dropped_steps"] >= 1
-    # The learner came back from its checkpoint and training continued past it.
-    assert summary["learner_restored_from_step"] > 0
+    # The learner came back from its checkpoint and training continued past it, with the replay
+    # of its last snapshot: only what came after it was lost, and the summary says how much.
+    assert summary["learner_restored_from_step"] >= 0  # -1: nothing was restored
     assert summary["learner_steps"] > summary["learner_restored_from_step"]
+    assert summary["learner_restored_replay"] > 0
+    assert 0 <= summary["lost_transitions"] < summary["env_steps"]
 
 
 TOKEN = "s3cret"
