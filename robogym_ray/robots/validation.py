@@ -10,6 +10,7 @@ list would become 60 MB of log). Robots check with ``check_range`` and quote cli
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Collection
 from heapq import nsmallest
 
@@ -17,6 +18,8 @@ from robogym_ray.errors import InvalidStateError, RoboGymRayError
 
 MAX_MESSAGE_CHARS = 2000
 """Longest error message put in a reply or a log line (robo-gym's client prints it whole)."""
+MAX_REASON_CHARS = 500
+"""Longest reason in a one-line reply (``reason``): enough for an option and the known ones."""
 MAX_PREVIEW_ITEMS = 5
 """Client-sent names (unknown keys ...) quoted in one message; the rest are counted."""
 MAX_PREVIEW_ITEM_CHARS = 80
@@ -59,6 +62,21 @@ def clip_text(text: str, limit: int = MAX_MESSAGE_CHARS) -> str:
         kept = max(0, limit - len(f"... [{len(text)} chars cut]"))
         text = f"{text[:kept]}... [{len(text) - kept} chars cut]"
     return text.replace("\r", " ").replace("\n", " ")
+
+
+_ANSI_ESCAPE = re.compile(r"\x1b\[[0-9;?]*[ -/]*[@-~]")
+
+
+def reason(text: str, limit: int = MAX_REASON_CHARS) -> str:
+    """The first non-blank line of ``text``, ANSI colour codes removed, clipped to ``limit``.
+
+    For replies to remote clients built from an exception that may carry a whole remote
+    traceback (Ray's errors do, coloured, with paths, PIDs and IPs): the first line says what
+    went wrong; the rest belongs in the log, not on the wire.
+    """
+    head = text[: 100 * limit]  # the first line is near the start; never scan megabytes
+    lines = (line.strip() for line in _ANSI_ESCAPE.sub("", head).splitlines())
+    return clip_text(next((line for line in lines if line), ""), limit)
 
 
 def preview(names: Collection[str]) -> str:

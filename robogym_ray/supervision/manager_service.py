@@ -3,8 +3,8 @@
 robo-gym's client finds the manager by scanning ports 50100..50199 with VerifyConnection, asks
 StartNewServer with a roslaunch-style ``cmd`` and then talks to ``<manager ip>:<port>``; so the
 robot servers started here bind the manager's own interface. Replies follow the reference
-manager: failures are ``success=false`` with the reason in ``info`` (robo-gym never reads it,
-but a person debugging does), never a gRPC error.
+manager: failures are ``success=false`` with a one-line reason in ``info`` (robo-gym never
+reads it, but a person debugging does), never a gRPC error.
 """
 
 from __future__ import annotations
@@ -18,6 +18,8 @@ import grpc
 from robogym_ray.errors import RoboGymRayError
 from robogym_ray.protocol import server_manager_pb2 as sm
 from robogym_ray.protocol import server_manager_pb2_grpc as sm_grpc
+from robogym_ray.robots.registry import check_options
+from robogym_ray.robots.validation import clip_text, reason
 from robogym_ray.supervision.launch import parse_launch_cmd
 from robogym_ray.supervision.server_host import ServerSpec
 from robogym_ray.supervision.supervisor import Supervisor
@@ -41,20 +43,25 @@ class ServerManagerService(sm_grpc.ServerManagerServicer):
         self.supervisor = supervisor
         self.host = host
         self.node = node
+        self._started_ports: set[int] = set()  # every port handed out; see KillServer
 
     def StartNewServer(self, request: sm.RobotServer, context: Any) -> sm.RobotServer:  # noqa: N802
         try:
+            # Refuse bad commands and options here, with the robot's own option parser: a robot
+            # server process started only to fail costs seconds and its error is a traceback.
             launch = parse_launch_cmd(request.cmd)
-            spec = ServerSpec(
-                robot=launch.robot, options=launch.options, host=self.host, node=self.node
-            )
-            info = self.supervisor.start_server(spec, owner=OWNER, keep_port=True)
+            check_options(launch.robot, None, launch.options)
         except RoboGymRayError as exc:
-            log.warning("StartNewServer(%r) failed: %s", request.cmd, exc)
-            return sm.RobotServer(success=False, info=f"{type(exc).__name__}: {exc}")
+            return self._refuse(request.cmd, exc)
+        spec = ServerSpec(
+            robot=launch.robot, options=launch.options, host=self.host, node=self.node
+        )
+        try:
+            info = self.supervisor.start_server(spec, owner=OWNER, keep_port=True)
         except Exception as exc:  # noqa: BLE001 - robo-gym expects success=false, not an error
             log.exception("StartNewServer(%r) failed", request.cmd)
-            return sm.RobotServer(success=False, info=f"{type(exc).__name__}: {exc}")
+            return self._refuse(request.cmd, exc)
+        self._started_ports.add(info["port"])
         log.info("StartNewServer: %s on port %d (gui ignored)", launch.robot, info["port"])
         return sm.RobotServer(
             cmd=request.cmd,
@@ -63,15 +70,29 @@ class ServerManagerService(sm_grpc.ServerManagerServicer):
             info=f"{launch.robot} at {info['address']}, id {info['id']}",
         )
 
+    def _refuse(self, cmd: str, exc: BaseException) -> sm.RobotServer:
+        # One line, no traceback: the reply goes to any client (robo-gym prints it whole).
+        info = reason(f"{type(exc).__name__}: {exc}")
+        log.warning("StartNewServer(%s) refused: %s", clip_text(repr(cmd), 300), info)
+        return sm.RobotServer(cmd=cmd, success=False, info=info)
+
     def KillServer(self, request: sm.RobotServer, context: Any) -> sm.RobotServer:  # noqa: N802
-        # Idempotent: robo-gym kills from __del__ too, so double and unknown kills are normal.
-        killed = self.supervisor.kill_port(request.port)
-        info = (
-            f"stopped the server on port {request.port}"
-            if killed
-            else (f"no server on port {request.port} (already stopped?)")
+        port = request.port
+        if self.supervisor.kill_port(port):
+            return sm.RobotServer(
+                port=port, success=True, info=f"stopped the server on port {port}"
+            )
+        # robo-gym's client kills from __del__ as well as from close(), retries a kill answered
+        # success=false and then raises; so a port this manager started and already stopped
+        # (a double kill, or an idle server reaped) is success=true, and only a port it never
+        # started is success=false.
+        if port in self._started_ports:
+            return sm.RobotServer(
+                port=port, success=True, info=f"the server on port {port} was already stopped"
+            )
+        return sm.RobotServer(
+            port=port, success=False, info=f"this manager never started a server on port {port}"
         )
-        return sm.RobotServer(port=request.port, success=True, info=info)
 
     def KillAllServers(self, request: sm.RobotServer, context: Any) -> sm.RobotServer:  # noqa: N802
         count = self.supervisor.kill_all(owner=OWNER)
