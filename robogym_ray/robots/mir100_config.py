@@ -10,7 +10,7 @@ from robogym_ray.errors import ConfigError, UnknownRobotError
 from robogym_ray.robots.command_handler import CommandHandlerConfig
 from robogym_ray.robots.mir100_drive import DriveLimits
 from robogym_ray.robots.mir100_scenes import check_scene, scene_for_world
-from robogym_ray.robots.validation import preview, quote
+from robogym_ray.robots.validation import parse_option_number, preview
 
 LASER_CASTERS = ("boxes", "bullet")
 """Ray casters ``Mir100Config.laser_caster`` accepts (see ``mir100_lasers``)."""
@@ -152,11 +152,4 @@ def _resolve_scene(scene: str | None, world_name: str | None) -> str:
 
 
 def _float_option(options: Mapping[str, str], name: str) -> float:
-    raw = options.get(name, "0.0")
-    try:
-        value = float(raw)
-    except ValueError:
-        raise ConfigError(f"MiR100 option {name}:={quote(raw)}; expected a number") from None
-    if not math.isfinite(value):
-        raise ConfigError(f"MiR100 option {name}:={quote(raw)}; expected a finite number")
-    return value  # the range is checked by Mir100Config
+    return parse_option_number(name, options.get(name, "0.0"))  # range: Mir100Config checks it

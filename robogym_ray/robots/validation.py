@@ -14,7 +14,7 @@ import re
 from collections.abc import Collection
 from heapq import nsmallest
 
-from robogym_ray.errors import InvalidStateError, RoboGymRayError
+from robogym_ray.errors import ConfigError, InvalidStateError, RoboGymRayError
 
 MAX_MESSAGE_CHARS = 2000
 """Longest error message put in a reply or a log line (robo-gym's client prints it whole)."""
@@ -47,6 +47,17 @@ def check_range(
     problem = "" if math.isfinite(number) else " (non-finite)"
     suffix = f" {unit}" if unit else ""
     raise error(f"{what} = {_number(number)}{problem}; expected within [{low:g}, {high:g}]{suffix}")
+
+
+def parse_option_number(name: str, text: str) -> float:
+    """A launch option's value as a finite float; ConfigError naming the option otherwise."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise ConfigError(f"option {name}={quote(text)} is not a number") from None
+    if not math.isfinite(value):
+        raise ConfigError(f"option {name}={quote(text)} must be finite")
+    return value
 
 
 def _number(value: float) -> str:
