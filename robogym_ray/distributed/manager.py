@@ -15,6 +15,9 @@ from dataclasses import dataclass
 
 from robogym_ray.config import add_config_args, check_port, config_from_args
 from robogym_ray.errors import ConfigError
+from robogym_ray.supervision.manager_service import ManagerLimits
+from robogym_ray.supervision.restart_policy import RestartPolicy
+from robogym_ray.supervision.supervisor import SupervisorConfig
 
 log = logging.getLogger(__name__)
 
@@ -36,6 +39,17 @@ class ManagerConfig:
     """Seconds between health probes of each robot server."""
     max_restarts: int = 5
     """Automatic restarts of one server within 5 minutes before it is given up."""
+    max_servers: int = ManagerLimits.max_servers
+    """Robot servers run at most; a StartNewServer beyond is refused at once (success=false).
+    Servers reserve no Ray CPU (they mostly wait on their socket), so this is the bound: about
+    200 MB of memory each (a MiR100 server, measured)."""
+    idle_timeout_s: float = 600.0
+    """Stop a robot server that had no SetState/SendAction for this long (0 = never): robo-gym
+    clients that vanish without KillServer would otherwise hold their server forever."""
+    max_concurrent_starts: int = ManagerLimits.max_concurrent_starts
+    """Robot servers started at the same time (each start loads PyBullet: CPU-bound)."""
+    start_wait_s: float = ManagerLimits.start_wait_s
+    """Seconds a StartNewServer waits for a start slot before it is refused as busy."""
 
     def __post_init__(self) -> None:
         check_port(self.port, "ManagerConfig.port (--port)")
@@ -43,9 +57,31 @@ class ManagerConfig:
             ("num_cpus", self.num_cpus > 0),
             ("probe_interval_s", self.probe_interval_s > 0),
             ("max_restarts", self.max_restarts >= 0),
+            ("max_servers", self.max_servers >= 1),
+            ("idle_timeout_s", self.idle_timeout_s >= 0),
+            ("max_concurrent_starts", self.max_concurrent_starts >= 1),
+            ("start_wait_s", self.start_wait_s >= 0),
         ):
             if not ok:  # NaN fails these comparisons too
                 raise ConfigError(f"ManagerConfig.{name} = {getattr(self, name)!r}; out of range")
+
+    def supervisor_config(self) -> SupervisorConfig:
+        """The supervisor this manager runs on."""
+        return SupervisorConfig(
+            probe_interval_s=self.probe_interval_s,
+            restart=RestartPolicy(max_restarts=self.max_restarts),
+            # A robot server waits on its socket between calls; reserving Ray CPU for it capped
+            # a 2-CPU manager at 7 servers. max_servers bounds them instead.
+            server_num_cpus=0.0,
+            idle_timeout_s=self.idle_timeout_s,
+        )
+
+    def limits(self) -> ManagerLimits:
+        return ManagerLimits(
+            max_servers=self.max_servers,
+            max_concurrent_starts=self.max_concurrent_starts,
+            start_wait_s=self.start_wait_s,
+        )
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -57,19 +93,19 @@ def run(args: argparse.Namespace) -> int:
 
     from robogym_ray.distributed.names import NAMESPACE
     from robogym_ray.distributed.remote import start_supervisor
-    from robogym_ray.supervision.restart_policy import RestartPolicy
-    from robogym_ray.supervision.supervisor import SupervisorConfig
 
     cfg = config_from_args(ManagerConfig, args)
     if cfg.ray_address:
         ray.init(address=cfg.ray_address, namespace=NAMESPACE)
     else:
         ray.init(num_cpus=cfg.num_cpus, include_dashboard=False, namespace=NAMESPACE)
-    sup_cfg = SupervisorConfig(
-        probe_interval_s=cfg.probe_interval_s, restart=RestartPolicy(max_restarts=cfg.max_restarts)
-    )
     try:
-        supervisor = start_supervisor(sup_cfg, manager_host=cfg.host, manager_port=cfg.port)
+        supervisor = start_supervisor(
+            cfg.supervisor_config(),
+            manager_host=cfg.host,
+            manager_port=cfg.port,
+            manager_limits=cfg.limits(),
+        )
     except Exception as exc:  # noqa: BLE001 - the actor's constructor failed (port taken ...)
         ray.shutdown()
         raise ConfigError(

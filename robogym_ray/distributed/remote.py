@@ -34,7 +34,7 @@ from robogym_ray.experience.rollout import RolloutWorker
 from robogym_ray.learner.service import LearnerService
 from robogym_ray.realrobot.robot import RealRobot
 from robogym_ray.realrobot.safety import SafetyConfig
-from robogym_ray.supervision.manager_service import serve_manager
+from robogym_ray.supervision.manager_service import ManagerLimits, serve_manager
 from robogym_ray.supervision.server_host import RobotServerHost, ServerSpec
 from robogym_ray.supervision.supervisor import SpawnedServer, Supervisor, SupervisorConfig
 
@@ -121,6 +121,9 @@ class RaySpawner:
     def inject_fault(self, server: SpawnedServer, fault: str, stall_s: float | None) -> None:
         ray.get(server.ref.inject_fault.remote(fault, stall_s))
 
+    def activity(self, server: SpawnedServer) -> int:
+        return ray.get(server.ref.activity.remote(), timeout=self.config.probe_deadline_s)
+
 
 RealRobotActor = ray.remote(num_cpus=0.05, max_restarts=0, max_concurrency=4)(RealRobot)
 
@@ -151,13 +154,18 @@ class _RaySupervisor(Supervisor):
         config: SupervisorConfig,
         manager_host: str | None = None,
         manager_port: int = 50100,
+        manager_limits: ManagerLimits | None = None,
     ) -> None:
         super().__init__(config, RaySpawner(config))
         self.manager_port = 0
         self._real: dict[str, Any] = {}
         if manager_host is not None:  # also on a Ray-driven restart of this actor
             self._grpc, self.manager_port = serve_manager(
-                self, manager_host, manager_port, node=ray.util.get_node_ip_address()
+                self,
+                manager_host,
+                manager_port,
+                node=ray.util.get_node_ip_address(),
+                limits=manager_limits,
             )
 
     def ping(self) -> bool:
@@ -166,6 +174,10 @@ class _RaySupervisor(Supervisor):
     def serving_port(self) -> int:
         """The ServerManager service's port (0 if this supervisor serves none)."""
         return self.manager_port
+
+    def reaped_count(self) -> int:
+        """Servers stopped for being idle (``SupervisorConfig.idle_timeout_s``)."""
+        return self.reaped
 
     def join_real_robot(self, name: str, address: str, safety: SafetyConfig) -> dict[str, Any]:
         """Join a real robot; it probes itself at the supervisor's probe interval when idle (a
@@ -190,13 +202,14 @@ def start_supervisor(
     name: str = SUPERVISOR_NAME,
     manager_host: str | None = None,
     manager_port: int = 50100,
+    manager_limits: ManagerLimits | None = None,
 ) -> Any:
     """Create the named supervisor actor (and its ServerManager service if ``manager_host``).
 
     Returns once it is up; ``ray.get(handle.ping.remote())`` has succeeded.
     """
     actor = SupervisorActor.options(name=name, namespace=NAMESPACE).remote(
-        config or SupervisorConfig(), manager_host, manager_port
+        config or SupervisorConfig(), manager_host, manager_port, manager_limits
     )
     ray.get(actor.ping.remote())
     return actor

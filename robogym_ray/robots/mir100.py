@@ -34,9 +34,9 @@ from collections.abc import Iterable, Mapping
 
 import numpy as np
 
-from robogym_ray.errors import ConfigError, InvalidActionError, UnknownRobotError
+from robogym_ray.errors import InvalidActionError
 from robogym_ray.robots.base import SimRobot, StateRequest, StateSnapshot
-from robogym_ray.robots.mir100_config import Mir100Config
+from robogym_ray.robots.mir100_config import Mir100Config, parse_options
 from robogym_ray.robots.mir100_drive import BaseState, clip, integrate, wrap_angle
 from robogym_ray.robots.mir100_lasers import BACK, FRONT, BoxCaster, BulletCaster, Caster, LaserPair
 from robogym_ray.robots.mir100_scenes import (
@@ -44,8 +44,6 @@ from robogym_ray.robots.mir100_scenes import (
     OBSTACLES,
     TARGET_MARKER_Z,
     build_scene,
-    check_scene,
-    scene_for_world,
 )
 from robogym_ray.robots.mir100_state import GROUPS, compose_state, parse_set_state
 from robogym_ray.robots.sim import PyBulletWorld
@@ -261,51 +259,13 @@ class Mir100Robot(SimRobot):
 
 __all__ = ["FOOTPRINT", "FOOTPRINT_OFFSET", "Mir100Config", "Mir100Robot", "make_mir100"]
 
-_IGNORED_OPTIONS = frozenset({"gui", "gazebo_gui", "rviz_gui", "server_port"})
-"""Launch arguments that only concern GUIs or the manager."""
-_POSE_OPTIONS = ("robot_x", "robot_y", "robot_yaw")
-
 
 def make_mir100(
     model: str, scene: str | None, seed: int | None, options: Mapping[str, str]
 ) -> Mir100Robot:
-    """Registry factory: a MiR100 from robo-gym launch arguments.
+    """Registry factory: a MiR100 from robo-gym launch arguments (see ``parse_options``).
 
     Args:
-        model: must be ``mir100``.
-        scene: ``empty`` or ``lab_6x8``; None = from ``world_name`` (default
-            ``empty_world_target.world``, as ``sim_robot_server.launch``).
         seed: seeds the laser noise.
-        options: ``world_name``, ``robot_x``, ``robot_y``, ``robot_yaw``; GUI arguments and
-            ``server_port`` are ignored; anything else raises ConfigError.
     """
-    if model != "mir100":
-        raise UnknownRobotError(f"make_mir100 builds model 'mir100', got {model!r}")
-    known = {"world_name", *_POSE_OPTIONS}
-    unknown = sorted(k for k in options if k not in known and k not in _IGNORED_OPTIONS)
-    if unknown:
-        raise ConfigError(
-            f"unknown MiR100 options {unknown}; known: {sorted(known | _IGNORED_OPTIONS)}"
-        )
-    resolved = _resolve_scene(scene, options.get("world_name"))
-    pose = tuple(_float_option(options, name) for name in _POSE_OPTIONS)
-    config = Mir100Config(scene=resolved, initial_pose=pose)  # type: ignore[arg-type]
-    return Mir100Robot(config, seed=seed)
-
-
-def _resolve_scene(scene: str | None, world_name: str | None) -> str:
-    from_world = scene_for_world(world_name) if world_name is not None else None
-    if scene is not None and from_world is not None and check_scene(scene) != from_world:
-        raise ConfigError(
-            f"scene {scene!r} contradicts world_name {world_name!r} (scene {from_world!r})"
-        )
-    return check_scene(scene or from_world or Mir100Config.scene)
-
-
-def _float_option(options: Mapping[str, str], name: str) -> float:
-    raw = options.get(name, "0.0")
-    try:
-        value = float(raw)
-    except ValueError:
-        raise ConfigError(f"MiR100 option {name}:={raw!r}; expected a number") from None
-    return value  # range and finiteness are checked by Mir100Config
+    return Mir100Robot(parse_options(model, scene, options), seed=seed)

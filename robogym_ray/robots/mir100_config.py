@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 
-from robogym_ray.errors import ConfigError
+from robogym_ray.errors import ConfigError, UnknownRobotError
 from robogym_ray.robots.command_handler import CommandHandlerConfig
 from robogym_ray.robots.mir100_drive import DriveLimits
-from robogym_ray.robots.mir100_scenes import check_scene
+from robogym_ray.robots.mir100_scenes import check_scene, scene_for_world
+from robogym_ray.robots.validation import parse_option_number, preview
 
 LASER_CASTERS = ("boxes", "bullet")
 """Ray casters ``Mir100Config.laser_caster`` accepts (see ``mir100_lasers``)."""
@@ -106,3 +108,48 @@ class Mir100Config:
             return CommandHandlerConfig(self.action_cycle, self.actuation_cycle, self.repeat)
         except ValueError as err:
             raise ConfigError(f"Mir100Config command-handler timing: {err}") from err
+
+
+_IGNORED_OPTIONS = frozenset({"gui", "gazebo_gui", "rviz_gui", "server_port"})
+"""Launch arguments that only concern GUIs or the manager."""
+_POSE_OPTIONS = ("robot_x", "robot_y", "robot_yaw")
+
+
+def parse_options(model: str, scene: str | None, options: Mapping[str, str]) -> Mir100Config:
+    """A Mir100Config from robo-gym launch arguments, without building anything (no PyBullet),
+    so the server manager can refuse bad options before it starts a server.
+
+    Args:
+        model: must be ``mir100``.
+        scene: ``empty`` or ``lab_6x8``; None = from ``world_name`` (default
+            ``empty_world_target.world``, as ``sim_robot_server.launch``).
+        options: ``world_name``, ``robot_x``, ``robot_y``, ``robot_yaw``; GUI arguments and
+            ``server_port`` are ignored; anything else raises ConfigError.
+    """
+    if model != "mir100":
+        raise UnknownRobotError(f"make_mir100 builds model 'mir100', got {model!r}")
+    known = {"world_name", *_POSE_OPTIONS}
+    unknown = sorted(k for k in options if k not in known and k not in _IGNORED_OPTIONS)
+    if unknown:
+        raise ConfigError(
+            f"unknown MiR100 options {preview(unknown)}; known: {sorted(known | _IGNORED_OPTIONS)}"
+        )
+    resolved = _resolve_scene(scene, options.get("world_name"))
+    pose = tuple(_float_option(options, name) for name in _POSE_OPTIONS)
+    try:
+        return Mir100Config(scene=resolved, initial_pose=pose)  # type: ignore[arg-type]
+    except ConfigError as err:  # only the pose can be wrong here: say which options made it
+        raise ConfigError(f"MiR100 options robot_x, robot_y, robot_yaw: {err}") from None
+
+
+def _resolve_scene(scene: str | None, world_name: str | None) -> str:
+    from_world = scene_for_world(world_name) if world_name is not None else None
+    if scene is not None and from_world is not None and check_scene(scene) != from_world:
+        raise ConfigError(
+            f"scene {scene!r} contradicts world_name {world_name!r} (scene {from_world!r})"
+        )
+    return check_scene(scene or from_world or Mir100Config.scene)
+
+
+def _float_option(options: Mapping[str, str], name: str) -> float:
+    return parse_option_number(name, options.get(name, "0.0"))  # range: Mir100Config checks it

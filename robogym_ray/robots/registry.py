@@ -31,6 +31,38 @@ ROBOTS: dict[str, str] = {
 }
 
 
+OPTION_PARSERS: dict[str, str] = {
+    "robogym_ray.robots.mir100:make_mir100": "robogym_ray.robots.mir100_config:parse_options",
+    "robogym_ray.robots.ur:make_ur": "robogym_ray.robots.ur_config:parse_options",
+}
+"""Factory -> the option parser that factory builds its config with: ``parser(model, scene,
+options)`` raises ConfigError exactly as the factory would, without PyBullet or a server."""
+
+
+def check_options(
+    name: str, scene: str | None = None, options: Mapping[str, str] | None = None
+) -> None:
+    """Raise what ``make_robot(name, scene=scene, options=options)`` would raise for a bad name,
+    scene or option, without building the robot (the server manager checks before it starts
+    a server process).
+
+    Raises:
+        UnknownRobotError: unknown robot, scene or world.
+        ConfigError: an unknown option or a bad option value.
+    """
+    module_name, _, attr = OPTION_PARSERS[_factory_path(name)].partition(":")
+    getattr(importlib.import_module(module_name), attr)(name, scene, dict(options or {}))
+
+
+def _factory_path(name: str) -> str:
+    try:
+        return ROBOTS[name]
+    except KeyError:
+        raise UnknownRobotError(
+            f"unknown robot {name!r}; known robots: {', '.join(sorted(ROBOTS))}"
+        ) from None
+
+
 def make_robot(
     name: str,
     *,
@@ -39,12 +71,6 @@ def make_robot(
     options: Mapping[str, str] | None = None,
 ) -> SimRobot:
     """Build the simulated robot ``name`` (see ``ROBOTS``) in ``scene`` (None = its default)."""
-    try:
-        target = ROBOTS[name]
-    except KeyError:
-        raise UnknownRobotError(
-            f"unknown robot {name!r}; known robots: {', '.join(sorted(ROBOTS))}"
-        ) from None
-    module_name, _, attr = target.partition(":")
+    module_name, _, attr = _factory_path(name).partition(":")
     factory: RobotFactory = getattr(importlib.import_module(module_name), attr)
     return factory(model=name, scene=scene, seed=seed, options=dict(options or {}))

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 from robogym_ray.errors import ConfigError, UnknownRobotError
 from robogym_ray.robots.ur_model import UR_MODELS
 from robogym_ray.robots.ur_state import RS_MODES
-from robogym_ray.robots.validation import check_range
+from robogym_ray.robots.validation import check_range, parse_option_number
 
 
 @dataclass(frozen=True)
@@ -108,16 +108,6 @@ def _choice(name: str, value: str, known: Iterable[str]) -> None:
         raise error(f"unknown {name} {value!r}; known: {', '.join(sorted(known))}")
 
 
-def _float(name: str, text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise ConfigError(f"option {name}={text!r} is not a number") from None
-    if not math.isfinite(value):
-        raise ConfigError(f"option {name}={text!r} must be finite")
-    return value
-
-
 def _bool(name: str, text: str) -> bool:
     lowered = text.strip().lower()
     if lowered in ("true", "1"):
@@ -167,16 +157,17 @@ def parse_options(model: str, scene: str | None, options: Mapping[str, str]) -> 
         if key in opts:
             kwargs[key] = opts[key]
     if "max_velocity_scale_factor" in opts:
-        kwargs["max_velocity_scale_factor"] = _float(
+        kwargs["max_velocity_scale_factor"] = parse_option_number(
             "max_velocity_scale_factor", opts["max_velocity_scale_factor"]
         )
     if "action_cycle_rate" in opts:
-        rate = _float("action_cycle_rate", opts["action_cycle_rate"])
+        rate = parse_option_number("action_cycle_rate", opts["action_cycle_rate"])
         low, high = ACTION_CYCLE_RATES
         rate = check_range("option action_cycle_rate", rate, low, high, "Hz", ConfigError)
         kwargs["action_cycle"] = 1.0 / rate
     if "objects_controller" in opts:
         kwargs["objects_controller"] = _bool("objects_controller", opts["objects_controller"])
     if "n_objects" in opts:
-        kwargs["n_objects"] = int(_float("n_objects", opts["n_objects"]))  # launch: int(float(x))
+        # the launch file does int(float(x))
+        kwargs["n_objects"] = int(parse_option_number("n_objects", opts["n_objects"]))
     return URConfig(**kwargs)  # type: ignore[arg-type]

@@ -10,13 +10,16 @@ list would become 60 MB of log). Robots check with ``check_range`` and quote cli
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Collection
 from heapq import nsmallest
 
-from robogym_ray.errors import InvalidStateError, RoboGymRayError
+from robogym_ray.errors import ConfigError, InvalidStateError, RoboGymRayError
 
 MAX_MESSAGE_CHARS = 2000
 """Longest error message put in a reply or a log line (robo-gym's client prints it whole)."""
+MAX_REASON_CHARS = 500
+"""Longest reason in a one-line reply (``reason``): enough for an option and the known ones."""
 MAX_PREVIEW_ITEMS = 5
 """Client-sent names (unknown keys ...) quoted in one message; the rest are counted."""
 MAX_PREVIEW_ITEM_CHARS = 80
@@ -46,6 +49,17 @@ def check_range(
     raise error(f"{what} = {_number(number)}{problem}; expected within [{low:g}, {high:g}]{suffix}")
 
 
+def parse_option_number(name: str, text: str) -> float:
+    """A launch option's value as a finite float; ConfigError naming the option otherwise."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise ConfigError(f"option {name}={quote(text)} is not a number") from None
+    if not math.isfinite(value):
+        raise ConfigError(f"option {name}={quote(text)} must be finite")
+    return value
+
+
 def _number(value: float) -> str:
     text = repr(value)
     # A float32 from the wire: 3e38 arrives as 2.9999999521443642e+38; 7 digits is all it holds.
@@ -59,6 +73,21 @@ def clip_text(text: str, limit: int = MAX_MESSAGE_CHARS) -> str:
         kept = max(0, limit - len(f"... [{len(text)} chars cut]"))
         text = f"{text[:kept]}... [{len(text) - kept} chars cut]"
     return text.replace("\r", " ").replace("\n", " ")
+
+
+_ANSI_ESCAPE = re.compile(r"\x1b\[[0-9;?]*[ -/]*[@-~]")
+
+
+def reason(text: str, limit: int = MAX_REASON_CHARS) -> str:
+    """The first non-blank line of ``text``, ANSI colour codes removed, clipped to ``limit``.
+
+    For replies to remote clients built from an exception that may carry a whole remote
+    traceback (Ray's errors do, coloured, with paths, PIDs and IPs): the first line says what
+    went wrong; the rest belongs in the log, not on the wire.
+    """
+    head = text[: 100 * limit]  # the first line is near the start; never scan megabytes
+    lines = (line.strip() for line in _ANSI_ESCAPE.sub("", head).splitlines())
+    return clip_text(next((line for line in lines if line), ""), limit)
 
 
 def preview(names: Collection[str]) -> str:

@@ -163,6 +163,12 @@ class RobotServerHost:
     def ping(self) -> bool:
         return True
 
+    def activity(self) -> int:
+        """Client calls served so far that only a client makes: SetState, SendAction and
+        rejected calls. GetState is left out: the supervisor's health probes are GetStates."""
+        calls = self.handle.core.calls
+        return calls["set"] + calls["action"] + calls["rejected"]
+
     def inject_fault(self, fault: str, stall_s: float | None = None) -> None:
         """Testing hook: make the server misbehave (see ``FAULTS``)."""
         self.faults.inject(fault, stall_s)

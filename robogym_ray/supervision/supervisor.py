@@ -42,6 +42,9 @@ class SupervisorConfig:
     """No robot's state has a legitimate value beyond +-this; a larger one is a broken state."""
     server_num_cpus: float = 0.25
     """CPUs reserved per robot-server actor (fractional: PyBullet in DIRECT mode is light)."""
+    idle_timeout_s: float = 0.0
+    """Seconds without a client's SetState or SendAction after which a server started with
+    ``reap_idle`` is stopped (0 = never). Probes are GetState calls and do not count."""
     restart: RestartPolicy = field(default_factory=RestartPolicy)
 
 
@@ -67,6 +70,9 @@ class ServerSpawner(Protocol):
     def inject_fault(self, server: SpawnedServer, fault: str, stall_s: float | None) -> None:
         """Testing hook, see ``server_host.FaultInjection``."""
 
+    def activity(self, server: SpawnedServer) -> int:
+        """How many client calls it has served (``RobotServerHost.activity``); grows when used."""
+
 
 class InProcessSpawner:
     """Servers in this process (tests and benchmarks without Ray)."""
@@ -81,6 +87,9 @@ class InProcessSpawner:
 
     def inject_fault(self, server: SpawnedServer, fault: str, stall_s: float | None) -> None:
         server.ref.inject_fault(fault, stall_s)
+
+    def activity(self, server: SpawnedServer) -> int:
+        return server.ref.activity()
 
 
 class _StartFailed(Exception):
@@ -104,6 +113,10 @@ class ManagedServer:
     holder: str = ""
     """Who holds the lease (a training run's worker): a replacement worker releases it."""
     keep_port: bool = False
+    reap_idle: bool = False
+    calls: int = 0
+    """Its client-call count when last looked at (``reap_idle``); changed since = in use."""
+    active_at: float = field(default_factory=time.monotonic)
     missed_probes: int = 0
     message: str = ""
     recoveries: list[tuple[str, float]] = field(default_factory=list)
@@ -140,6 +153,9 @@ class Supervisor:
         self._servers: dict[str, ManagedServer] = {}
         self._table_lock = threading.Lock()  # guards _servers only; never held while spawning
         self._ids = itertools.count(1)
+        self.reaped = 0
+        """Servers stopped for being idle (``SupervisorConfig.idle_timeout_s``)."""
+        self._next_reap = 0.0
         self._stop = threading.Event()
         self._pool = ThreadPoolExecutor(max_workers=8, thread_name_prefix="probe")
         self._prober: threading.Thread | None = None
@@ -149,7 +165,11 @@ class Supervisor:
 
     # -- starting and handing out -----------------------------------------------------------
     def start_server(
-        self, spec: ServerSpec, owner: str = "user", keep_port: bool = False
+        self,
+        spec: ServerSpec,
+        owner: str = "user",
+        keep_port: bool = False,
+        reap_idle: bool = False,
     ) -> dict[str, Any]:
         """Start a supervised server; returns its info once it answers GetState.
 
@@ -157,6 +177,8 @@ class Supervisor:
         address, like robo-gym's). Otherwise a restart gets a fresh port: gRPC clients share
         connections per address process-wide, and one that failed during the outage backs off
         before reconnecting, so a new address is served sooner.
+        ``reap_idle``: stop it once idle for ``idle_timeout_s`` (for clients that may vanish
+        without stopping their server, like robo-gym's through the ServerManager).
         """
         sid = f"{spec.robot}-{next(self._ids)}"
         try:
@@ -167,8 +189,9 @@ class Supervisor:
             ) from None
         book = RestartBook(self.config.restart, name=f"robot server {sid} ({spec.robot})")
         entry = ManagedServer(
-            sid, spec, owner, book, server, leased=owner == "lease", keep_port=keep_port
-        )
+            sid, spec, owner, book, server, leased=owner == "lease", keep_port=keep_port,
+            reap_idle=reap_idle,
+        )  # fmt: skip
         with self._table_lock:
             self._servers[sid] = entry
         log.info("started %s at %s (pid %d)", sid, server.address, server.pid)
@@ -251,8 +274,38 @@ class Supervisor:
         while not self._stop.wait(self.config.probe_interval_s):
             try:
                 self.probe_once()
+                if self.config.idle_timeout_s > 0 and time.monotonic() >= self._next_reap:
+                    # A tenth of the timeout is precise enough and keeps the asking cheap.
+                    self._next_reap = time.monotonic() + self.config.idle_timeout_s / 10
+                    self.reap_idle()
             except Exception:  # noqa: BLE001 - the prober must outlive any one bad probe
                 log.exception("health probe failed")
+
+    def reap_idle(self) -> list[str]:
+        """Stop each ``reap_idle`` server without client calls for ``idle_timeout_s``; returns
+        their ids. One whose count cannot be read (dead, restarting) is left to the probes."""
+        with self._table_lock:
+            entries = [e for e in self._servers.values() if e.reap_idle and e.state == "running"]
+        counts = self._pool.map(self._activity, entries)
+        now, reaped = time.monotonic(), []
+        for entry, calls in zip(entries, counts, strict=True):
+            if calls is not None and calls != entry.calls:
+                entry.calls, entry.active_at = calls, now
+            elif now - entry.active_at >= self.config.idle_timeout_s and self.kill(entry.id):
+                log.warning(
+                    "%s: stopped, %.0f s without a client call", entry.id, now - entry.active_at
+                )
+                reaped.append(entry.id)
+        self.reaped += len(reaped)
+        return reaped
+
+    def _activity(self, entry: ManagedServer) -> int | None:
+        server = entry.server
+        try:
+            return None if server is None else self.spawner.activity(server)
+        except Exception:  # noqa: BLE001 - unreadable now; the probes judge its health
+            log.debug("activity of %s unreadable", entry.id, exc_info=True)
+            return None
 
     def _handle_fault(self, entry: ManagedServer, cause: FaultCause, detail: str) -> None:
         """Kill and restart ``entry`` (its lock held) until it serves or is given up."""

@@ -109,9 +109,10 @@ def test_robo_gym_client_starts_drives_and_kills_mir100_and_ur10(manager: int) -
         assert stub.KillServer(sm.RobotServer(port=port), timeout=60).success
     with pytest.raises(grpc.RpcError):
         mir_rs.GetState(rs.Empty(), timeout=2)
-    # Double kills and unknown ports are harmless (robo-gym kills from __del__ too).
+    # A double kill is harmless (robo-gym kills from __del__ too and raises on success=false);
+    # a port this manager never started is not.
     assert stub.KillServer(sm.RobotServer(port=mir.port), timeout=60).success
-    assert stub.KillServer(sm.RobotServer(port=1), timeout=60).success
+    assert not stub.KillServer(sm.RobotServer(port=1), timeout=60).success
     assert stub.VerifyConnection(sm.Empty(), timeout=20).alive
 
 
@@ -126,6 +127,15 @@ def test_unknown_robot_is_refused_with_an_explanation(manager: int) -> None:
         sm.RobotServer(cmd="roslaunch ur_robot_server ur_robot_server.launch ur_model:=ur42")
     )
     assert not reply.success and "ur42" in reply.info
+    # Bad options are refused before a robot-server actor starts: one short line, not the
+    # actor's coloured traceback with its paths, PID and node IP.
+    for option in ("robot_x:=nan", "action_cycle_rate:=0"):
+        robot = "ur_robot_server ur_robot_server.launch ur_model:=ur5"
+        if option.startswith("robot_x"):
+            robot = "mir100_robot_server sim_robot_server.launch"
+        reply = stub.StartNewServer(sm.RobotServer(cmd=f"roslaunch {robot} {option}"), timeout=60)
+        assert not reply.success and option.split(":=")[0] in reply.info
+        assert "\n" not in reply.info and "\x1b" not in reply.info and len(reply.info) <= 500
     assert stub.KillAllServers(sm.RobotServer()).success
 
 

@@ -278,7 +278,8 @@ def test_factory_options() -> None:
         (None, {"world_name": "moon.world"}, UnknownRobotError, "lab_6x8.world"),
         (None, {"speed": "2"}, ConfigError, "unknown MiR100 options"),
         (None, {"robot_x": "far"}, ConfigError, "robot_x"),
-        (None, {"robot_y": "nan"}, ConfigError, "initial_pose"),
+        (None, {"robot_y": "nan"}, ConfigError, "robot_y"),  # the option, not the field
+        (None, {"robot_x": "1e9"}, ConfigError, "robot_x.*initial_pose"),
         ("empty", {"world_name": "lab_6x8.world"}, ConfigError, "contradicts"),
     ],
 )
