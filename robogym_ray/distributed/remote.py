@@ -36,7 +36,8 @@ from robogym_ray.realrobot.robot import RealRobot
 from robogym_ray.realrobot.safety import SafetyConfig
 from robogym_ray.supervision.manager_service import ManagerLimits, serve_manager
 from robogym_ray.supervision.server_host import RobotServerHost, ServerSpec
-from robogym_ray.supervision.supervisor import SpawnedServer, Supervisor, SupervisorConfig
+from robogym_ray.supervision.spawners import SpawnedServer
+from robogym_ray.supervision.supervisor import Supervisor, SupervisorConfig
 
 log = logging.getLogger(__name__)
 

@@ -15,12 +15,13 @@ import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
-from typing import Any, Protocol
+from typing import Any
 
 from robogym_ray.errors import RobotServerError
 from robogym_ray.supervision.health import probe, wait_ready
 from robogym_ray.supervision.restart_policy import FaultCause, RestartBook, RestartPolicy
-from robogym_ray.supervision.server_host import RobotServerHost, ServerSpec
+from robogym_ray.supervision.server_host import ServerSpec
+from robogym_ray.supervision.spawners import ServerSpawner, SpawnedServer
 
 log = logging.getLogger(__name__)
 
@@ -46,50 +47,6 @@ class SupervisorConfig:
     """Seconds without a client's SetState or SendAction after which a server started with
     ``reap_idle`` is stopped (0 = never). Probes are GetState calls and do not count."""
     restart: RestartPolicy = field(default_factory=RestartPolicy)
-
-
-@dataclass
-class SpawnedServer:
-    """One started robot server: where it listens and the spawner's handle to it."""
-
-    address: str
-    port: int
-    pid: int
-    ref: Any
-    node_id: str = ""
-    """Ray node the server runs on ("" outside Ray)."""
-
-
-class ServerSpawner(Protocol):
-    def spawn(self, spec: ServerSpec) -> SpawnedServer:
-        """Start a server; raise on failure (it need not be answering yet)."""
-
-    def kill(self, server: SpawnedServer) -> None:
-        """Stop it for good, returning once its port is free again."""
-
-    def inject_fault(self, server: SpawnedServer, fault: str, stall_s: float | None) -> None:
-        """Testing hook, see ``server_host.FaultInjection``."""
-
-    def activity(self, server: SpawnedServer) -> int:
-        """How many client calls it has served (``RobotServerHost.activity``); grows when used."""
-
-
-class InProcessSpawner:
-    """Servers in this process (tests and benchmarks without Ray)."""
-
-    def spawn(self, spec: ServerSpec) -> SpawnedServer:
-        host = RobotServerHost(spec)
-        info = host.info()
-        return SpawnedServer(info["address"], info["port"], info["pid"], host)
-
-    def kill(self, server: SpawnedServer) -> None:
-        server.ref.stop()
-
-    def inject_fault(self, server: SpawnedServer, fault: str, stall_s: float | None) -> None:
-        server.ref.inject_fault(fault, stall_s)
-
-    def activity(self, server: SpawnedServer) -> int:
-        return server.ref.activity()
 
 
 class _StartFailed(Exception):

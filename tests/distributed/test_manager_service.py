@@ -22,12 +22,8 @@ from robogym_ray.protocol import server_manager_pb2 as sm
 from robogym_ray.protocol import server_manager_pb2_grpc as sm_grpc
 from robogym_ray.supervision.manager_service import ManagerLimits, serve_manager
 from robogym_ray.supervision.server_host import ServerSpec
-from robogym_ray.supervision.supervisor import (
-    InProcessSpawner,
-    SpawnedServer,
-    Supervisor,
-    SupervisorConfig,
-)
+from robogym_ray.supervision.spawners import InProcessSpawner, SpawnedServer
+from robogym_ray.supervision.supervisor import Supervisor, SupervisorConfig
 
 UR5 = "roslaunch ur_robot_server ur_robot_server.launch ur_model:=ur5"
 MIR = "roslaunch mir100_robot_server sim_robot_server.launch world_name:=empty_world_target.world"

@@ -11,7 +11,8 @@ from robogym_ray.supervision.health import check_state
 from robogym_ray.supervision.launch import parse_launch_cmd
 from robogym_ray.supervision.restart_policy import FaultCause, RestartBook, RestartPolicy
 from robogym_ray.supervision.server_host import ServerSpec
-from robogym_ray.supervision.supervisor import InProcessSpawner, Supervisor, SupervisorConfig
+from robogym_ray.supervision.spawners import InProcessSpawner
+from robogym_ray.supervision.supervisor import Supervisor, SupervisorConfig
 
 SP = " " * 9
 
