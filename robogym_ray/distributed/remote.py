@@ -241,6 +241,9 @@ class _Evaluator(Evaluator):
         weights, version = weights_and_version
         return super().evaluate(weights, version, episodes, seed_base)
 
+    def ping(self) -> int:
+        return os.getpid()
+
 
 RolloutActor = ray.remote(_Rollout)
 LearnerActor = ray.remote(LearnerService)

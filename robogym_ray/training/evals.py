@@ -57,7 +57,19 @@ class EvalSchedule:
                 weights, version = ray.get(self.weights_ref)
                 selector.keep(self.stats.eval, weights, version, self.stats.env_steps)
         except RayActorError:
-            log.warning("evaluator failed; evaluation stops")
-            self.p.evaluator = None
+            # The call fails too when its weights came from a learner that died (Ray restarts
+            # it): then only this evaluation is lost. Only a dead evaluator stops evaluating.
+            if self._evaluator_alive():
+                log.warning("an evaluation was lost with its weights (learner restarted)")
+            else:
+                log.warning("evaluator failed; evaluation stops")
+                self.p.evaluator = None
             return None
         return self.poll(None, logger, wall_s)
+
+    def _evaluator_alive(self) -> bool:
+        try:
+            ray.get(self.p.evaluator.ping.remote(), timeout=30)
+            return True
+        except (RayActorError, ray.exceptions.GetTimeoutError):
+            return False

@@ -76,7 +76,7 @@ class Program:
         self.first_learner_step, self.first_total_added = status["version"], status["total_added"]
         self.workers = self._start_workers()
         if cfg.evaluator:
-            kwargs = self._env_kwargs(10_000) | setup.evaluator_env_kwargs(cfg, env_id)
+            kwargs = self._env_kwargs(None) | setup.evaluator_env_kwargs(cfg, env_id)
             self.evaluator = remote.EvaluatorActor.options(num_cpus=cfg.evaluator_cpus).remote(
                 make_gym_env(env_id, kwargs), d4pg,
                 seed=cfg.seed + 10_000, video_every_s=cfg.video_interval_s,
@@ -84,13 +84,17 @@ class Program:
         selecting = cfg.select_episodes and self.evaluator is not None
         self.selector = SnapshotSelector(checkpoints) if selecting else None
 
-    def _env_kwargs(self, index: int) -> dict[str, Any]:
-        """Sim envs lease their servers from the supervisor, as holder ``worker-INDEX``; the
-        first ``emulated_workers`` lease emulated robots."""
+    def _env_kwargs(self, index: int | None) -> dict[str, Any]:
+        """Sim envs lease their servers from the supervisor, as holder ``worker-INDEX`` (the
+        evaluator, index None: ``evaluator``); the first ``emulated_workers`` lease emulated
+        robots, the evaluator never."""
         if self.supervision is None:
             return {}
-        emulated = self.emulation if index < self.cfg.emulated_workers else None
-        return {"provider": self.supervision.provider(emulated, holder=f"worker-{index}")}
+        emulated = (
+            self.emulation if index is not None and index < self.cfg.emulated_workers else None
+        )
+        holder = "evaluator" if index is None else f"worker-{index}"
+        return {"provider": self.supervision.provider(emulated, holder=holder)}
 
     def _start_workers(self) -> list[WorkerSlot]:
         cfg = self.cfg

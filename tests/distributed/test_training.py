@@ -122,7 +122,6 @@ def test_killing_a_robot_server_a_worker_and_the_learner_mid_run(tmp_path: Path)
         run_name=run,
         progress=False,
         checkpoint_every=50,
-        evaluator=False,
         replay_snapshot_every_s=1.0,
     )
     done = threading.Event()
@@ -135,10 +134,12 @@ def test_killing_a_robot_server_a_worker_and_the_learner_mid_run(tmp_path: Path)
         return ray.get_actor(f"learner-{run}", namespace=remote.NAMESPACE)
 
     def servers_up() -> bool:
-        return len([s for s in ray.get(supervisor().status.remote()) if s["pid"]]) >= 2
+        servers = ray.get(supervisor().status.remote())
+        return len([s for s in servers if s["pid"] and s["holder"].startswith("worker-")]) >= 2
 
-    def server_pid() -> int:
-        return next(s["pid"] for s in ray.get(supervisor().status.remote()) if s["pid"])
+    def server_pid() -> int:  # a rollout worker's, not the evaluator's
+        servers = ray.get(supervisor().status.remote())
+        return next(s["pid"] for s in servers if s["pid"] and s["holder"].startswith("worker-"))
 
     def learner_checkpointed() -> bool:  # with a replay snapshot of some 500+ transitions
         snapshot = tmp_path / run / "checkpoints" / "learner.pt.replay.npz"
@@ -183,6 +184,8 @@ def test_killing_a_robot_server_a_worker_and_the_learner_mid_run(tmp_path: Path)
     assert summary["learner_restored_from_step"] >= 0  # -1: nothing was restored
     assert summary["learner_steps"] > summary["learner_restored_from_step"]
     assert summary["learner_restored_replay"] > 0
+    # The evaluator's call that held the dead learner's weights failed; evaluation went on.
+    assert summary["eval_history"][-1]["learner_steps"] > summary["learner_restored_from_step"]
     assert 0 <= summary["lost_transitions"] < summary["env_steps"]
 
 
