@@ -336,26 +336,27 @@ def leak(target: Target, name: str, args: argparse.Namespace, pool: futures.Thre
 @contextlib.contextmanager
 def child(cmd: list[str], eof_stops: bool) -> Iterator[tuple[subprocess.Popen, str, str]]:
     """Start ``cmd``; yield (process, address from its 'listening on' line, its stderr log)."""
-    log = tempfile.NamedTemporaryFile("w", prefix="fuzz-", suffix=".log", delete=False)  # noqa: SIM115 - kept for a post-mortem
-    proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=log,
-                            text=True, env={**os.environ, "PYTHONUNBUFFERED": "1"})  # fmt: skip
-    try:
-        line = proc.stdout.readline().strip() if proc.stdout else ""
-        if not line.startswith("listening on "):
-            raise RuntimeError(f"{shlex.join(cmd)} did not start: {line!r}, see {log.name}")
-        yield proc, line.removeprefix("listening on "), log.name
-    finally:
-        if proc.stdin:
-            proc.stdin.close()  # the --child servers stop on EOF (also if we die); `serve` on TERM
-        with contextlib.suppress(subprocess.TimeoutExpired):
-            proc.wait(timeout=10 if eof_stops else 0)
-        if proc.poll() is None:
-            proc.send_signal(signal.SIGTERM)
+    with tempfile.NamedTemporaryFile("w", prefix="fuzz-", suffix=".log") as log:
+        proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=log,
+                                text=True, env={**os.environ, "PYTHONUNBUFFERED": "1"})  # fmt: skip
         try:
-            proc.wait(timeout=20)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
+            line = proc.stdout.readline().strip() if proc.stdout else ""
+            if not line.startswith("listening on "):
+                with open(log.name) as err:
+                    raise RuntimeError(f"{shlex.join(cmd)}: {line!r} {err.read()[-600:]}")
+            yield proc, line.removeprefix("listening on "), log.name
+        finally:
+            if proc.stdin:
+                proc.stdin.close()  # --child servers stop on EOF (also if we die); `serve` on TERM
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                proc.wait(timeout=10 if eof_stops else 0)
+            if proc.poll() is None:
+                proc.send_signal(signal.SIGTERM)
+            try:
+                proc.wait(timeout=20)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
 
 
 def serve_child(kind: str) -> None:
@@ -451,8 +452,9 @@ def report(rows: list[tuple[Target, int]], leaks: list) -> None:
               f"{t.outcomes['refused_silently']} | {codes} | {len(t.hangs)} | "
               f"{len(t.problems) - corrupted} | {corrupted} | {rss} | "
               f"{t.sent / max(t.seconds, 1e-9):.0f} |")  # fmt: skip
-    print("\n| undecodable bytes sent to | messages | replies | RSS growth (MB) | MB per 10,000 "
-          "|\n|---|---|---|---|---|")  # fmt: skip
+    if leaks:
+        print("\n| undecodable bytes sent to | messages | replies | RSS growth (MB) "
+              "| MB per 10,000 |\n|---|---|---|---|---|")  # fmt: skip
     for name, seen, grown in leaks:
         replies = ", ".join(f"{k} {v}" for k, v in sorted(seen.items()))
         print(f"| {name} | {seen.total()} | {replies} | {grown:+.1f} | "
