@@ -5,7 +5,7 @@ the server manager, from 8 threads, on 127.0.0.1, with 0 crashes (the server sti
 valid call after every batch and at the end), 0 hangs (every call returns before its deadline;
 DEADLINE_EXCEEDED calls are listed), 0 corrupted states (after fuzzing, a valid SetState +
 GetState gives back what was set, finite and of the right length, identical to the same round
-trip before fuzzing) and the server's RSS flat from the end of the warm-up batch to the end.
+trip before fuzzing) and the server's RSS flat from the end of the first (warm-up) batch to the end.
 
 Each server runs in its own child process (a PID to measure): ``robogym-ray serve`` for the
 robots; this script with ``--child manager`` (a ServerManager over an in-process supervisor,
@@ -62,6 +62,8 @@ RPCS = {RS: {"GetState": (pb.Empty, pb.State), "SetState": (pb.State, pb.Success
              "SendAction": (pb.Action, pb.Success), "SendActionGetState": (pb.Action, pb.State)},
         SM: {"StartNewServer": _RS, "KillServer": _RS, "KillAllServers": _RS,
              "VerifyConnection": (sm.Empty, sm.Status)}}  # fmt: skip
+MAX_TEXT = 5_000_000
+"""Longest string sent (``--max-text``)."""
 NASTY = (math.nan, math.inf, -math.inf, 1e38, -1e38, 3.4028235e38, 1e-45, -0.0, 1e9, -1e9)
 MIR_CMD = "roslaunch mir100_robot_server sim_robot_server.launch world_name:=lab_6x8.world"
 UR10_CMD = "roslaunch ur_robot_server ur_robot_server.launch ur_model:=ur10 rs_mode:=1object"
@@ -87,6 +89,7 @@ def text(rng: np.random.Generator) -> str:
     # Mostly short; now and then beyond the 2,000-character clip and gRPC's 4 MB message limit.
     n = int(rng.choice([0, 1, 8, 64, 1_000, 100_000, 1_000_000, 5_000_000],
                        p=[0.1, 0.2, 0.3, 0.2, 0.15, 0.03, 0.015, 0.005]))  # fmt: skip
+    n = min(n, MAX_TEXT)
     if n > 1_000:
         return chr(int(rng.integers(32, 0xD7FF))) * n
     codes = rng.integers(0, 128 if rng.random() < 0.5 else 0x110000, n)
@@ -268,7 +271,7 @@ def fuzz(target: Target, make: Callable, total: int, args: argparse.Namespace, t
 
     start, batch = time.monotonic(), 0
     while target.sent < total and time.monotonic() < t_end and not target.problems:
-        n = min(args.warmup if batch == 0 else args.batch, total - target.sent)
+        n = min(math.ceil(total / args.batches), total - target.sent)
         stream = [args.seed, zlib.crc32(target.name.encode()), batch]  # hash() is salted
         jobs = [pool.submit(worker, [*stream, w], n // args.threads + (w < n % args.threads))
                 for w in range(args.threads)]  # fmt: skip
@@ -442,12 +445,12 @@ def report(rows: list[tuple[Target, int]], leaks: list) -> None:
           f"CPUs, python {platform.python_version()}, grpcio {grpc.__version__}:\n\n"
           f"    {shlex.join(['python', *sys.argv])}\n\n"
           "| target | messages | ok | refused (with reason) | refused, no reason | gRPC status "
-          "codes | deadline exceeded | crashes | corrupted | RSS after warm-up -> end (MB) "
+          "codes | deadline exceeded | crashes | corrupted | RSS (MB) after warm-up -> half -> end "
           "| messages/s |\n|---|---|---|---|---|---|---|---|---|---|---|")  # fmt: skip
     for t, corrupted in rows:
         codes = ", ".join(f"{k} {v}" for k, v in sorted(t.outcomes.items())
                           if k not in ("ok", "refused", "refused_silently")) or "-"  # fmt: skip
-        rss = f"{t.rss[0]:.1f} -> {t.rss[-1]:.1f} ({t.rss[-1] - t.rss[0]:+.1f})" if t.rss else "-"
+        rss = " -> ".join(f"{t.rss[i]:.0f}" for i in (0, len(t.rss) // 2, -1)) if t.rss else "-"
         print(f"| {t.name} | {t.sent} | {t.outcomes['ok']} | {t.outcomes['refused']} | "
               f"{t.outcomes['refused_silently']} | {codes} | {len(t.hangs)} | "
               f"{len(t.problems) - corrupted} | {corrupted} | {rss} | "
@@ -460,27 +463,30 @@ def report(rows: list[tuple[Target, int]], leaks: list) -> None:
         print(f"| {name} | {seen.total()} | {replies} | {grown:+.1f} | "
               f"{grown / max(seen.total(), 1) * 10_000:+.1f} |")  # fmt: skip
     for t, _ in rows:
+        print(f"\n- {t.name}: RSS (MB) after each batch: {', '.join(f'{r:.0f}' for r in t.rss)}")
         for line in t.problems + [f"DEADLINE_EXCEEDED: {h}" for h in t.hangs]:
             print(f"\n- {t.name}: {line}")
 
 
 def main() -> int:
+    global MAX_TEXT  # noqa: PLW0603 - read deep inside the generators, by the worker threads
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--messages", type=int, default=10_000, help="per robot server")
     parser.add_argument("--manager-messages", type=int, default=2_000)
     parser.add_argument("--manager-starts", type=int, default=2, help="deliberate valid starts")
     parser.add_argument("--leak-messages", type=int, default=10_000, help="undecodable, each")
     parser.add_argument("--threads", type=int, default=8)
-    parser.add_argument("--warmup", type=int, default=1_000, help="messages before RSS counts")
-    parser.add_argument("--batch", type=int, default=1_000, help="messages between checks")
+    parser.add_argument("--batches", type=int, default=10, help="checks; the first is warm-up")
     parser.add_argument("--seconds", type=float, default=1200.0, help="fuzzing time limit")
     parser.add_argument("--deadline", type=float, default=10.0, help="per call (s)")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--max-text", type=int, default=MAX_TEXT, help="longest string sent")
     parser.add_argument("--child", choices=["manager", "bare"], help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child:
         serve_child(args.child)
         return 0
+    MAX_TEXT = args.max_text
     t_end, leaks = time.monotonic() + args.seconds, []
     with futures.ThreadPoolExecutor(args.threads) as pool:
         rows = [fuzz_robot(robot, args, t_end, pool, leaks) for robot in ROBOTS]
