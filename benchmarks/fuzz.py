@@ -13,11 +13,14 @@ no Ray) and ``--child bare`` (the generated RobotServer base servicer: every RPC
 Undecodable bytes leak memory inside gRPC; they are kept out of the main run and measured on
 their own, at the robot server and at the bare server, to show the leak is gRPC's.
 
-Prints a markdown report for docs/benchmarks.md; exits 1 on any crash, hang or corrupted state,
-2 if --seconds ran out before the message counts were reached.
+Prints a markdown report for docs/benchmarks.md (RSS after every batch too: multi-MB strings
+move the heap's high-water mark by ~10 MB, so judge flatness by the plateau, or rerun with
+``--max-text 1000``); exits 1 on any crash, hang or corrupted state, 2 if --seconds ran out
+before the message counts were reached.
 
 Usage: python benchmarks/fuzz.py [--messages 10000] [--manager-messages 2000] [--threads 8]
-           [--leak-messages 10000] [--seconds 1200] [--deadline 10] [--seed 0]
+           [--batches 10] [--leak-messages 10000] [--max-text 5000000] [--seconds 1200]
+           [--deadline 10] [--seed 0]
 """
 
 from __future__ import annotations
