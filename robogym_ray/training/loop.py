@@ -9,7 +9,6 @@ steps; ``get_eval_weights`` -> ``Evaluator.evaluate`` every ``eval_interval_s``.
 
 from __future__ import annotations
 
-import json
 import logging
 import threading
 import time
@@ -22,6 +21,7 @@ from ray.exceptions import RayActorError
 from robogym_ray.experience.rollout import RolloutResult
 from robogym_ray.training import setup, stats
 from robogym_ray.training.evals import EvalSchedule
+from robogym_ray.training.finish import finish
 from robogym_ray.training.program import Program
 from robogym_ray.training.stats import RunStats, WorkerSlot
 
@@ -85,7 +85,7 @@ class TrainingLoop:
             if logger.due(cfg.log_every_s):  # scalars cost a supervisor round trip
                 logger.write(self._scalars(), self.stats.env_steps)
         self._drain_learner(learner_calls, block=True, all_=True)
-        return self._finish(logger)
+        return finish(self.p, self.stats, logger, self._scalars, self._wall)
 
     def _done(self, in_flight: int = 0) -> bool:
         """Whether collecting should stop: enough steps (counting those in flight), the wall
@@ -151,27 +151,3 @@ class TrainingLoop:
             restarts=self.p.restart_counts(),
             best_snapshot_rate=None if best is None else best[0],
         )
-
-    def _finish(self, logger: Any) -> dict[str, Any]:
-        p = self.p
-        checkpoint = ray.get(p.learner.checkpoint.remote(self.cfg.save_replay, final=True))
-        learner_status = ray.get(p.learner.status.remote())
-        wall = self._wall()
-        final = self._scalars()
-        logger.write(final, self.stats.env_steps)
-        logger.close()
-        summary = stats.summary(
-            self.stats, final,
-            task=p.preset.env_id, wall_s=round(wall, 2), checkpoint=checkpoint,
-            restarts=p.restart_counts(),
-            learner_restored_from_step=learner_status["restored_from_step"],
-            learner_restored_replay=learner_status["restored_replay"],
-            # Sent but not in the replay: lost with a learner that Ray restarted (what came
-            # after its last replay snapshot, and the batch in flight).
-            lost_transitions=self.stats.transitions_sent
-            - (learner_status["total_added"] - p.first_total_added),
-            best_snapshot=None if p.selector is None else p.selector.summary(),
-            server_nodes=p.server_nodes(), logdir=str(p.run_dir),
-        )  # fmt: skip
-        (p.run_dir / "summary.json").write_text(json.dumps(summary, indent=2))
-        return summary

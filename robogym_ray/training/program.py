@@ -3,20 +3,15 @@ and the real robots of one run, as Ray actors (``distributed/remote.py``), and s
 
 from __future__ import annotations
 
-import os
 import time
-from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
 import ray
 
 from robogym_ray.distributed import remote
-from robogym_ray.distributed.real_client import RealRobotClientFactory
-from robogym_ray.envs.registration import variant_id
 from robogym_ray.experience.rollout import box_dims, make_gym_env
 from robogym_ray.learner.config import D4PGConfig
-from robogym_ray.realrobot.safety import safety_for
 from robogym_ray.robots.emulation import EmulationConfig
 from robogym_ray.training import setup
 from robogym_ray.training.config import TrainConfig
@@ -135,23 +130,12 @@ class Program:
         return True
 
     def _real_env(self, k: int) -> Any:
-        """A Rob-variant env that reaches the robot only through its real-robot actor."""
-        address = self.cfg.real_robot[k]
-        name = f"real-{self.run_dir.name}-{k}"
-        env_id = variant_id(self.preset.env_id, "rob")
-        token = self.cfg.token or os.environ.get("ROBOGYM_RAY_TOKEN") or None
-        actor = remote.start_real_robot(name, address, safety_for(env_id), token=token)
+        actor, factory = setup.real_robot(self.cfg, self.preset.env_id, self.run_dir.name, k)
         self.real_robots.append(actor)
-        kwargs = {"rs_address": address, "client_factory": RealRobotClientFactory(name)}
-        return make_gym_env(env_id, kwargs)
+        return factory
 
     def config_record(self) -> dict[str, Any]:
-        """What ``config.json`` holds: a config file ``--config`` reads back."""
-        train = asdict(self.cfg) | ({"token": None} if self.cfg.token else {})
-        record = {"train": train, "d4pg": asdict(self.d4pg)}
-        if self.cfg.emulated_workers:
-            record["emulation"] = asdict(self.emulation)
-        return record
+        return setup.config_record(self.cfg, self.d4pg, self.emulation)
 
     def restart_counts(self) -> dict[str, int]:
         return {} if self.supervision is None else self.supervision.restart_counts()

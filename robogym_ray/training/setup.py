@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import logging
+import os
 import shutil
 from collections import Counter
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
@@ -14,13 +15,17 @@ import ray
 
 from robogym_ray.distributed import remote
 from robogym_ray.distributed.provider import SupervisorServerProvider
+from robogym_ray.distributed.real_client import RealRobotClientFactory
+from robogym_ray.envs.registration import variant_id
 from robogym_ray.errors import ConfigError
 from robogym_ray.experience.revisits import FailedStartRevisits
+from robogym_ray.experience.rollout import make_gym_env
 from robogym_ray.learner import checkpoint
 from robogym_ray.learner.checkpoint import CHECKPOINT_NAME, replay_path
 from robogym_ray.learner.config import D4PGConfig
 from robogym_ray.learner.learner import linear_ramp
 from robogym_ray.learner.networks import DistributionalCritic, Policy
+from robogym_ray.realrobot.safety import safety_for
 from robogym_ray.robots.emulation import EmulationConfig
 from robogym_ray.supervision.restart_policy import FaultCause
 from robogym_ray.supervision.supervisor import SupervisorConfig
@@ -201,3 +206,24 @@ def evaluator_env_kwargs(cfg: TrainConfig, env_id: str) -> dict[str, Any]:
     from robogym_ray.envs.render import RenderConfig
 
     return {"render_mode": "rgb_array", "render_config": RenderConfig(width=320, height=240)}
+
+
+def real_robot(cfg: TrainConfig, env_id: str, run_name: str, k: int) -> tuple[Any, Any]:
+    """The real-robot actor for ``cfg.real_robot[k]`` and an env factory for the task's Rob
+    variant that reaches the robot only through it (safety filter, pause on errors)."""
+    address = cfg.real_robot[k]
+    name = f"real-{run_name}-{k}"
+    rob_id = variant_id(env_id, "rob")
+    token = cfg.token or os.environ.get("ROBOGYM_RAY_TOKEN") or None
+    actor = remote.start_real_robot(name, address, safety_for(rob_id), token=token)
+    kwargs = {"rs_address": address, "client_factory": RealRobotClientFactory(name)}
+    return actor, make_gym_env(rob_id, kwargs)
+
+
+def config_record(cfg: TrainConfig, d4pg: D4PGConfig, emulation: EmulationConfig) -> dict:
+    """What ``config.json`` holds: a config file ``--config`` reads back (never the token)."""
+    train = asdict(cfg) | ({"token": None} if cfg.token else {})
+    record = {"train": train, "d4pg": asdict(d4pg)}
+    if cfg.emulated_workers:
+        record["emulation"] = asdict(emulation)
+    return record
