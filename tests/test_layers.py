@@ -90,7 +90,10 @@ def test_the_low_layers_stay_low() -> None:
     graph = folder_graph()
     assert graph["learner"] <= {"errors", "config"}, graph["learner"]
     assert graph["protocol"] <= {"errors"}, graph["protocol"]
-    assert graph["envs"] <= {"errors", "protocol", "robots", "config"}, graph["envs"]
+    # Supervision (restart policy, health checks) sits below the envs: an env that runs its
+    # robot in process supervises it with the supervisor's own rules.
+    assert graph["supervision"] <= {"errors", "protocol", "robots", "config"}, graph["supervision"]
+    assert graph["envs"] <= {"errors", "protocol", "robots", "config", "supervision"}, graph["envs"]
     assert "distributed" not in graph["experience"] | graph["supervision"] | graph["realrobot"]
 
 

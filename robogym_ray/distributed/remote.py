@@ -16,6 +16,8 @@ Ray mechanisms used, and why:
   restores the latest checkpoint (``LearnerService``), so training resumes where it was.
 * Weights travel through the object store: the driver passes the ObjectRef of the learner's
   ``get_weights()`` result to the workers; Ray resolves it once per node.
+* Transitions go from each rollout worker to the learner directly (``learner.add.remote`` in
+  the worker); the driver receives the reference of the learner's answer, for its counters.
 """
 
 from __future__ import annotations
@@ -30,7 +32,7 @@ from ray.exceptions import GetTimeoutError, RayActorError
 
 from robogym_ray.distributed.names import NAMESPACE, SUPERVISOR_NAME
 from robogym_ray.experience.evaluator import Evaluator
-from robogym_ray.experience.rollout import RolloutWorker
+from robogym_ray.experience.rollout import RolloutResult, RolloutWorker
 from robogym_ray.learner.service import LearnerService
 from robogym_ray.realrobot.robot import RealRobot
 from robogym_ray.realrobot.safety import SafetyConfig
@@ -226,6 +228,20 @@ def get_supervisor(name: str = SUPERVISOR_NAME) -> Any | None:
 
 # -- the training program ------------------------------------------------------------------------
 class _Rollout(RolloutWorker):
+    """A rollout worker that sends its batches to the learner itself: the driver gets counters
+    and the reference of the learner's answer, never the transitions."""
+
+    def __init__(self, *args: Any, learner: Any = None, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.learner = learner
+
+    def collect(self, num_steps: int, noise_scale: float = 1.0) -> RolloutResult:
+        result = super().collect(num_steps, noise_scale)
+        if self.learner is not None and result.batch is not None:
+            result.learner_call = self.learner.add.remote(result.batch)
+            result.batch = None
+        return result
+
     def set_weights(self, weights_and_version: tuple[dict, int]) -> None:  # type: ignore[override]
         weights, version = weights_and_version
         super().set_weights(weights, version)

@@ -3,9 +3,10 @@
 Sim and Real are one class with a switch, because the two differ in *where the server comes
 from* and *what the env may assume*, not in the task:
 
-* **Sim** (``real_robot=False``): the server comes from a ``ServerProvider`` (default: an
-  in-process robot server started on first reset, so ``gymnasium.make(id)`` needs nothing
-  running; ``rs_address=`` pins one). A ``RobotServerError`` mid-episode is reported to the lease,
+* **Sim** (``real_robot=False``): the server comes from a ``ServerProvider`` (default: the robot
+  core in this process, built on first reset and called without the wire, so
+  ``gymnasium.make(id)`` needs nothing running; ``provider=EmbeddedServerProvider()`` puts a
+  gRPC robot server in between; ``rs_address=`` pins one). A ``RobotServerError`` mid-episode is reported to the lease,
   a new lease is acquired and the episode ends with ``truncated=True`` and
   ``info["final_status"] == "server_restarted"`` - a restart is invisible otherwise. A failure in
   ``reset`` is retried once on a fresh lease.
@@ -57,8 +58,8 @@ class RobotServerEnv(gym.Env[np.ndarray, np.ndarray]):
     Args:
         real_robot: Real variant (needs ``rs_address``; no server management).
         rs_address: ``host:port`` of a running robot server (Real: required; Sim: optional).
-        provider: where a Sim env gets servers (default ``EmbeddedServerProvider()``; the
-            training program passes its supervisor's).
+        provider: where a Sim env gets servers (default ``InProcessServerProvider()``; the
+            training program passes its own).
         token: shared token for the server (gRPC metadata ``robogym-token``).
         deadlines: per-RPC deadlines (default: ``Deadlines.fast()`` for the default embedded
             server, robo-gym's (spec a.2) for any other server).
@@ -283,9 +284,13 @@ class RobotServerEnv(gym.Env[np.ndarray, np.ndarray]):
         if self.client is None:
             robot, scene, options = self.server_spec()
             self.lease = self.provider.acquire(robot, scene, options, self.server_seed)
-            token = getattr(self.lease, "token", None) or self.token
-            factory = self.client_factory or RobotServerClient
-            self.client = factory(self.lease.address, deadlines=self.deadlines, token=token)
+            connect = getattr(self.lease, "connect", None)
+            if connect is not None and self.client_factory is None:  # in-process: no wire
+                self.client = connect(self.deadlines)
+            else:
+                token = getattr(self.lease, "token", None) or self.token
+                factory = self.client_factory or RobotServerClient
+                self.client = factory(self.lease.address, deadlines=self.deadlines, token=token)
         return self.client
 
     def _disconnect(self) -> None:
@@ -306,7 +311,7 @@ class RobotServerEnv(gym.Env[np.ndarray, np.ndarray]):
     def _end_after_fault(
         self, exc: RobotServerError
     ) -> tuple[np.ndarray, float, bool, bool, StepInfo]:
-        info: StepInfo = {"final_status": SERVER_RESTARTED, "error": str(exc)}
+        info: StepInfo = {"final_status": SERVER_RESTARTED, "error": str(exc), "fault": exc.cause}
         try:
             self._replace_server(exc.cause)
         except RobotServerError as again:  # next reset() tries again and raises if it must
@@ -315,7 +320,7 @@ class RobotServerEnv(gym.Env[np.ndarray, np.ndarray]):
         obs = self._last_obs
         assert obs is not None
         self._last_obs = None  # the episode is over: step() needs a reset first
-        return obs, 0.0, False, True, info
+        return obs.copy(), 0.0, False, True, info  # a copy: the caller may keep the last one
 
 
 def polar_2d(dx: float, dy: float, yaw: float) -> tuple[float, float]:

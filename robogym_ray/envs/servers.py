@@ -8,9 +8,12 @@ the same address - the env never needs to know.
 
 Providers here:
 
-* ``EmbeddedServerProvider`` (the default): starts a robot server in this process with
+* ``InProcessServerProvider`` (the default, ``envs/inprocess.py``): the robot core runs in the
+  env's own process and the env calls it directly - no wire, same semantics.
+* ``EmbeddedServerProvider``: starts a gRPC robot server in this process with
   ``robogym_ray.robots.server.start_robot_server`` on a free loopback port and stops it on
-  release. Imported lazily, so env registration does not import PyBullet.
+  release (the wire path, e.g. to compare with robo-gym's). Imported lazily, so env
+  registration does not import PyBullet.
 * ``StaticServerProvider``: a fixed ``host:port`` that somebody else runs; faults are only
   remembered (nothing can be restarted from here).
 """
@@ -136,6 +139,8 @@ class StaticServerProvider:
 
 
 def default_provider() -> ServerProvider:
-    """An embedded server. A supervised one is never looked up here: whoever wants one passes
-    a provider (the training program does), so a Sim env behaves the same in any process."""
-    return EmbeddedServerProvider()
+    """An in-process core. A supervised server is never looked up here: whoever wants one
+    passes a provider, so a Sim env behaves the same in any process."""
+    from robogym_ray.envs.inprocess import InProcessServerProvider
+
+    return InProcessServerProvider()

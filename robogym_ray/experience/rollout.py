@@ -1,8 +1,8 @@
-"""Rollout worker (plain class): env + CPU policy copy + exploration + n-step accumulator.
+"""Rollout worker (plain class): K envs + CPU policy copy + exploration + n-step accumulators.
 
 The Ray program wraps it in an actor; tests drive it directly. One ``collect`` call runs a fixed
-number of env steps and returns the finished n-step transitions, the episodes that ended, and
-counters. When the robot server fails mid-episode (the env ends the episode with
+number of env steps (one batched policy forward per round of the K envs) and returns the finished
+n-step transitions, the episodes that ended, and counters. When the robot server fails mid-episode (the env ends the episode with
 ``final_status == "server_restarted"``), the unfinished n-step window is dropped, so no
 transition in replay ever spans a crash.
 """
@@ -60,6 +60,12 @@ class RolloutResult:
     """Failed calls to a real robot (which is never restarted; the worker waits for it)."""
     paused: bool = False
     """The robot could not start an episode (e.g. paused by its operator): try again later."""
+    faults: dict[str, int] = field(default_factory=dict)
+    """Server faults that ended episodes, by the client's cause (``deadline``, ``rejected`` ...)."""
+    transitions: int = 0
+    """n-step transitions completed (in ``batch``, or already sent to the learner)."""
+    learner_call: Any = None
+    """The learner's answer to this batch when the worker sent it itself (a Ray reference)."""
 
 
 def box_dims(env: gym.Env) -> tuple[int, int]:
@@ -72,8 +78,32 @@ def box_dims(env: gym.Env) -> tuple[int, int]:
     return int(obs.shape[0]), int(act.shape[0])
 
 
+ENV_SEED_STRIDE = 100_003
+"""Env k of a worker seeded ``seed`` first resets with ``seed + k * ENV_SEED_STRIDE`` (a prime far
+above any worker count, so the envs of different workers never share a first episode)."""
+
+
+@dataclass
+class EnvSlot:
+    """One of a worker's envs and what is pending on it: its observation (None: it needs a
+    reset), its n-step window and the running episode's return and length."""
+
+    env: gym.Env
+    nstep: NStepAccumulator
+    obs: np.ndarray | None = None
+    start: tuple[int, bool] = (-1, False)
+    """(seed, revisit) the running episode started from."""
+    ret: float = 0.0
+    length: int = 0
+
+
 class RolloutWorker:
-    """Collects n-step experience with a noisy copy of the policy."""
+    """Collects n-step experience from K envs with a noisy copy of the policy.
+
+    Every step is one batched policy forward for the envs that are running, then one step of
+    each; episodes end independently, each env has its own n-step window, and an env whose
+    episode ended resets before its next step.
+    """
 
     def __init__(
         self,
@@ -85,17 +115,23 @@ class RolloutWorker:
         seed: int = 0,
         random_steps: int = 0,
         revisits: FailedStartRevisits | None = None,
+        num_envs: int = 1,
     ) -> None:
         """Args:
-        make_env: builds this worker's env (Sim via a server provider, or Real by address).
+        make_env: builds one of this worker's envs (Sim via a server provider, or Real).
         d4pg: network shapes, n-step length and discount.
         index: worker number (for logs and episode records).
         sigma: this worker's exploration noise (Ape-X gives each actor its own); None = d4pg's.
         seed: env and noise seed.
         random_steps: first steps taken with uniform random actions (before any weights).
         revisits: re-run the starts of failed episodes; every reset is then seeded from it.
+        num_envs: envs stepped together (K), with one batched policy forward per step.
         """
-        self.env = make_env()
+        if num_envs < 1:
+            raise ConfigError(f"worker {index}: num_envs={num_envs}; expected >= 1")
+        self.slots = [EnvSlot(make_env(), NStepAccumulator(d4pg.n_step, d4pg.discount))
+                      for _ in range(num_envs)]  # fmt: skip
+        self.env = self.slots[0].env
         self.index = index
         obs_dim, act_dim = box_dims(self.env)
         self.low = self.env.action_space.low.astype(np.float64)
@@ -109,90 +145,100 @@ class RolloutWorker:
             d4pg.layer_norm,
             seed=seed,
         )
-        self.nstep = NStepAccumulator(d4pg.n_step, d4pg.discount)
         self.random_steps = random_steps
         self.rng = np.random.default_rng(seed + 7919)
         self.weights_version = -1
         self.total_steps = 0
         self.retry_wait_s = 1.0
         self.revisits = revisits
-        self._start = revisits.next_start() if revisits else (seed, False)
-        self.obs: np.ndarray | None = self.env.reset(seed=self._start[0])[0]
-        self._ret, self._len = 0.0, 0
+        for k, slot in enumerate(self.slots):
+            slot.start = revisits.next_start() if revisits else (seed + k * ENV_SEED_STRIDE, False)
+            slot.obs = slot.env.reset(seed=slot.start[0])[0]
 
     def set_weights(self, weights: Mapping[str, np.ndarray], version: int) -> None:
         self.actor.set_weights(dict(weights))
         self.weights_version = version
 
-    def _action(self) -> np.ndarray:
+    def _actions(self, obs: np.ndarray) -> np.ndarray:
         if self.weights_version < 0 or self.total_steps < self.random_steps:
-            return self.rng.uniform(-1.0, 1.0, self.actor.act_dim).astype(np.float32)
-        return self.actor.act(np.asarray(self.obs, dtype=np.float32), explore=True)
+            return self.rng.uniform(-1.0, 1.0, (len(obs), self.actor.act_dim)).astype(np.float32)
+        return self.actor.act_batch(obs, explore=True)
 
     def collect(self, num_steps: int, noise_scale: float = 1.0) -> RolloutResult:
-        """Run ``num_steps`` env steps with ``noise_scale`` times this worker's sigma; return
-        completed transitions and finished episodes."""
+        """Run at least ``num_steps`` env steps over the K envs (rounded up to whole rounds of
+        the running envs) with ``noise_scale`` times this worker's sigma; return completed
+        transitions and finished episodes."""
         if not (math.isfinite(noise_scale) and noise_scale >= 0):
             raise ValueError(f"worker {self.index}: noise_scale {noise_scale!r}; expected >= 0")
         self.actor.sigma = self.sigma * noise_scale
         start = time.perf_counter()
         out: list[Transition] = []
         result = RolloutResult(batch=None, worker=self.index, weights_version=self.weights_version)
-        for _ in range(num_steps):
-            if self.obs is None and not self._try_reset(result):
+        while result.steps < num_steps:
+            running = [s for s in self.slots if s.obs is not None or self._try_reset(s, result)]
+            if not running:
                 break
-            action = self._action()
-            try:
-                next_obs, reward, terminated, truncated, info = self.env.step(
-                    to_env_action(action, self.low, self.high)
-                )
-            except RobotServerError as exc:
-                # Real robots raise instead of restarting: abandon the episode (and its
-                # unfinished n-step window) and start a new one once the robot answers.
-                self._abandon(result, exc)
-                continue
-            result.steps += 1
-            self._ret += float(reward)
-            self._len += 1
-            status = str(info.get("final_status", ""))
-            if status == SERVER_RESTARTED:
-                # The episode was cut by a crash: its pending window would bootstrap across it.
-                result.dropped += self.nstep.drop() + 1
-            else:
-                out += self.nstep.push(
-                    self.obs, action, float(reward), next_obs, bool(terminated), bool(truncated)
-                )
-            self.obs = next_obs
-            if terminated or truncated or status == SERVER_RESTARTED:
-                ended = status or ("truncated" if truncated else "terminated")
-                result.episodes.append(
-                    Episode(self._ret, self._len, ended, self.index, self._start[1])
-                )
-                if self.revisits is not None:
-                    self.revisits.record(*self._start, status)
-                self._ret, self._len = 0.0, 0
-                self.nstep.drop()  # nothing may carry over into the next episode
-                self.obs = None  # the next step resets (a real robot's reset may fail)
+            actions = self._actions(np.stack([s.obs for s in running]).astype(np.float32))
+            for slot, action in zip(running, actions, strict=True):
+                self._step(slot, action, result, out)
         self.total_steps += result.steps
         result.batch = stack_transitions(out) if out else None
+        result.transitions = len(out)
         result.wall_s = time.perf_counter() - start
         return result
 
-    def _abandon(self, result: RolloutResult, exc: RobotServerError) -> None:
+    def _step(
+        self, slot: EnvSlot, action: np.ndarray, result: RolloutResult, out: list[Transition]
+    ) -> None:
+        try:
+            next_obs, reward, terminated, truncated, info = slot.env.step(
+                to_env_action(action, self.low, self.high)
+            )
+        except RobotServerError as exc:
+            # Real robots raise instead of restarting: abandon the episode (and its
+            # unfinished n-step window) and start a new one once the robot answers.
+            self._abandon(slot, result, exc)
+            return
+        result.steps += 1
+        slot.ret += float(reward)
+        slot.length += 1
+        status = str(info.get("final_status", ""))
+        if status == SERVER_RESTARTED:
+            # The episode was cut by a crash: its pending window would bootstrap across it.
+            result.dropped += slot.nstep.drop() + 1
+            fault = str(info.get("fault", "other"))
+            result.faults[fault] = result.faults.get(fault, 0) + 1
+        else:
+            out += slot.nstep.push(
+                slot.obs, action, float(reward), next_obs, bool(terminated), bool(truncated)
+            )
+        slot.obs = next_obs
+        if terminated or truncated or status == SERVER_RESTARTED:
+            ended = status or ("truncated" if truncated else "terminated")
+            result.episodes.append(
+                Episode(slot.ret, slot.length, ended, self.index, slot.start[1])
+            )
+            if self.revisits is not None:
+                self.revisits.record(*slot.start, status)
+            slot.ret, slot.length = 0.0, 0
+            slot.nstep.drop()  # nothing may carry over into the next episode
+            slot.obs = None  # the next step resets (a real robot's reset may fail)
+
+    def _abandon(self, slot: EnvSlot, result: RolloutResult, exc: RobotServerError) -> None:
         log.warning("worker %d: robot error, episode abandoned: %s", self.index, exc)
         result.robot_errors += 1
-        result.dropped += self.nstep.drop()
+        result.dropped += slot.nstep.drop()
         result.episodes.append(
-            Episode(self._ret, self._len, ROBOT_ERROR, self.index, self._start[1])
+            Episode(slot.ret, slot.length, ROBOT_ERROR, self.index, slot.start[1])
         )
-        self._ret, self._len = 0.0, 0
-        self.obs = None
+        slot.ret, slot.length = 0.0, 0
+        slot.obs = None
 
-    def _try_reset(self, result: RolloutResult) -> bool:
+    def _try_reset(self, slot: EnvSlot, result: RolloutResult) -> bool:
         start = self.revisits.next_start() if self.revisits else None
         try:
-            self.obs, _ = self.env.reset(seed=None if start is None else start[0])
-            self._start = start or (-1, False)
+            slot.obs, _ = slot.env.reset(seed=None if start is None else start[0])
+            slot.start = start or (-1, False)
             return True
         except RobotServerError as exc:
             log.warning("worker %d: robot not ready (%s); retrying later", self.index, exc)
@@ -204,7 +250,8 @@ class RolloutWorker:
         return self.total_steps
 
     def close(self) -> None:
-        self.env.close()
+        for slot in self.slots:
+            slot.env.close()
 
 
 def make_gym_env(env_id: str, env_kwargs: Mapping[str, Any] | None = None) -> EnvFactory:

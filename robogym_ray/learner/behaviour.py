@@ -39,10 +39,17 @@ class BehaviourPolicy:
 
     def act(self, obs: np.ndarray, explore: bool) -> np.ndarray:
         """Policy action for one observation, plus N(0, sigma) noise when exploring, clipped."""
+        return self.act_batch(np.asarray(obs)[None], explore)[0]
+
+    def act_batch(self, obs: np.ndarray, explore: bool) -> np.ndarray:
+        """Actions for a batch of observations (B x obs_dim): one forward pass for all.
+
+        The noise is drawn as one (B x act_dim) block, so a batch of one draws exactly what
+        ``act`` draws."""
         with torch.inference_mode():
-            action = self.policy(torch.as_tensor(obs, dtype=torch.float32)[None])[0].numpy()
+            action = self.policy(torch.as_tensor(obs, dtype=torch.float32)).numpy()
         if explore and self.sigma > 0:
-            action = action + self.sigma * self.rng.standard_normal(self.act_dim)
+            action = action + self.sigma * self.rng.standard_normal(action.shape)
         return np.clip(action, -1.0, 1.0).astype(np.float32)
 
 

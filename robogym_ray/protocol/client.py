@@ -137,9 +137,10 @@ class RobotServerClient:
             code = exc.code() if isinstance(exc, grpc.Call) else grpc.StatusCode.UNKNOWN
             details = exc.details() if isinstance(exc, grpc.Call) else str(exc)
             cause = _CAUSES.get(code, "rpc")
-            what = f"no answer within the {deadline:g} s deadline" if cause == "deadline" else ""
+            if cause == "deadline":
+                raise deadline_error(rpc, deadline, self.address) from None
             raise RobotServerError(
-                f"{rpc} failed: {code.name}: {what or details}", address=self.address, cause=cause
+                f"{rpc} failed: {code.name}: {details}", address=self.address, cause=cause
             ) from None
 
     def _rejected(self, rpc: str, call: grpc.Call, fallback: str = "") -> RobotServerError:
@@ -147,6 +148,15 @@ class RobotServerClient:
         return RobotServerError(
             f"{rpc} rejected (success=false): {reason}", address=self.address, cause="rejected"
         )
+
+
+def deadline_error(rpc: str, deadline: float, address: str) -> RobotServerError:
+    """The error of a call not answered within its deadline (gRPC or in-process)."""
+    return RobotServerError(
+        f"{rpc} failed: DEADLINE_EXCEEDED: no answer within the {deadline:g} s deadline",
+        address=address,
+        cause="deadline",
+    )
 
 
 def _trailing(call: grpc.Call, key: str) -> str:

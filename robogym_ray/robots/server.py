@@ -212,21 +212,31 @@ class RobotServerServicer(pb_grpc.RobotServerServicer):
         return pb.State(success=False, string_params={"error": message})
 
     def _report(self, context: grpc.ServicerContext, rpc: str, exc: Exception) -> str:
-        self.core.calls["rejected"] += 1
-        # Client input may be megabytes long: cut once, then use the cut text everywhere.
-        message = clip_text(f"{rpc}: {type(exc).__name__}: {exc}")
-        suppressed = self._log_limit.allow((rpc, type(exc).__name__))
-        if suppressed is not None:
-            note = f" ({suppressed} similar suppressed)" if suppressed else ""
-            if isinstance(exc, RoboGymRayError):
-                log.warning("rejected %s%s", message, note)
-            else:  # a bug of ours, not bad input: keep the traceback (frames only: bounded)
-                frames = "".join(traceback.format_tb(exc.__traceback__))
-                log.error("failed %s%s\nTraceback:\n%s", message, note, frames)
-        # Metadata values must be printable ASCII.
-        safe = message.encode("ascii", "replace").decode("ascii")
-        context.set_trailing_metadata(((ERROR_METADATA_KEY, safe),))
+        message = reject(self.core, self._log_limit, rpc, exc)
+        context.set_trailing_metadata(((ERROR_METADATA_KEY, ascii_safe(message)),))
         return message
+
+
+def reject(core: RobotServerCore, log_limit: LogLimit, rpc: str, exc: Exception) -> str:
+    """Count, log (rate-limited) and word a call refused with ``success=false``; returns the
+    message. The one wording of a refusal, for the gRPC servicer and the in-process client."""
+    core.calls["rejected"] += 1
+    # Client input may be megabytes long: cut once, then use the cut text everywhere.
+    message = clip_text(f"{rpc}: {type(exc).__name__}: {exc}")
+    suppressed = log_limit.allow((rpc, type(exc).__name__))
+    if suppressed is not None:
+        note = f" ({suppressed} similar suppressed)" if suppressed else ""
+        if isinstance(exc, RoboGymRayError):
+            log.warning("rejected %s%s", message, note)
+        else:  # a bug of ours, not bad input: keep the traceback (frames only: bounded)
+            frames = "".join(traceback.format_tb(exc.__traceback__))
+            log.error("failed %s%s\nTraceback:\n%s", message, note, frames)
+    return message
+
+
+def ascii_safe(message: str) -> str:
+    """gRPC metadata values must be printable ASCII."""
+    return message.encode("ascii", "replace").decode("ascii")
 
 
 class LogLimit:

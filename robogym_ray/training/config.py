@@ -6,6 +6,8 @@ from dataclasses import dataclass
 
 from robogym_ray.errors import ConfigError
 
+SIM_PATHS = ("inprocess", "grpc")
+
 
 @dataclass(frozen=True)
 class TrainConfig:
@@ -15,7 +17,18 @@ class TrainConfig:
     """Env id (e.g. RoboGymRay/ObstacleAvoidanceMir100Sim-v0) or short name: navigation,
     navigation-sectors, positioning, pendulum."""
     workers: int = 2
-    """Simulated rollout workers (each with its own robot server)."""
+    """Simulated rollout workers (each steps --envs-per-worker simulated robots)."""
+    envs_per_worker: int = 4
+    """Envs each simulated worker steps together, with one batched policy forward per round
+    (real-robot workers always have one)."""
+    sim_path: str = "inprocess"
+    """Where simulated robots run. inprocess (default, fast): inside their worker's process,
+    called directly, faults rebuilt and counted by the worker. grpc: each env talks to its own
+    supervised robot-server actor over robo-gym's gRPC protocol (robot servers on other nodes,
+    --server-resource, a wire identical to a real robot's)."""
+    worker_deadline_s: float = 120.0
+    """A simulated worker's call that has not returned after this many seconds (a simulation
+    stuck in a physics step) gets the worker killed and replaced, counted as a hung restart."""
     emulated_workers: int = 0
     """How many of the simulated workers train on emulated robots (sensor noise, actuation
     latency, dynamics differences: the --emu-* settings or the config file's "emulation"
@@ -107,13 +120,15 @@ class TrainConfig:
     learner_cpus: float = 0.5
     """Ray CPUs reserved for the learner."""
     server_cpus: float = 0.2
-    """Ray CPUs reserved per supervised robot server (one per sim worker, one for the evaluator)."""
+    """Ray CPUs reserved per supervised robot server (--sim-path grpc: one per simulated env,
+    one for the evaluator)."""
     evaluator_cpus: float = 0.1
     """Ray CPUs reserved for the evaluator."""
     learner_gpus: float = -1.0
     """GPUs for the learner: -1 = one if the cluster has any, else 0."""
     server_resource: str | None = None
-    """Custom Ray resource robot-server actors require (places them on the nodes that have it)."""
+    """Custom Ray resource the simulations require (places them on the nodes that have it): the
+    robot-server actors with --sim-path grpc, the simulated workers with inprocess."""
     log_every_s: float = 5.0
     """Seconds between TensorBoard writes of rates and counters."""
     progress: bool = True
@@ -121,7 +136,9 @@ class TrainConfig:
 
     def cpu_demand(self) -> float:
         """Ray CPUs the run reserves (the supervisor's own 0.05 included)."""
-        servers = self.workers + (1 if self.evaluator else 0)
+        servers = 0
+        if self.sim_path == "grpc":
+            servers = self.workers * self.envs_per_worker + (1 if self.evaluator else 0)
         return (
             self.learner_cpus
             + (self.workers + len(self.real_robot)) * self.worker_cpus
@@ -141,6 +158,9 @@ class TrainConfig:
             ),
             (self.total_steps >= 1, "total_steps", ">= 1"),
             (self.steps_per_call >= 1, "steps_per_call", ">= 1"),
+            (self.envs_per_worker >= 1, "envs_per_worker", ">= 1"),
+            (self.sim_path in SIM_PATHS, "sim_path", f"one of {', '.join(SIM_PATHS)}"),
+            (self.worker_deadline_s > 0, "worker_deadline_s", "> 0"),
             (self.select_episodes >= 0, "select_episodes", ">= 0"),
             (self.eval_interval_s >= 0, "eval_interval_s", ">= 0"),
             (self.real_robot_wait_s >= 0, "real_robot_wait_s", ">= 0"),

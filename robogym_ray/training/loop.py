@@ -1,8 +1,10 @@
 """The training loop, read top to bottom: worker results -> learner, weights -> workers,
 weights -> evaluator, counters -> TensorBoard, until ``total_steps``.
 
-Each arrow is one call: ``RolloutWorker.collect`` (a batch of n-step transitions, through
-Ray's object store) -> ``LearnerService.add`` (insert, then the learner steps it pays for) ->
+Each arrow is one call: ``RolloutWorker.collect`` (K envs stepped together; the worker sends its
+batch of n-step transitions to ``LearnerService.add`` itself, worker -> learner through Ray's
+object store, and the driver gets counters plus the reference of the learner's answer) ->
+``LearnerService.add`` (insert, then the learner steps it pays for) ->
 ``get_weights`` -> ``RolloutWorker.set_weights`` every ``weight_sync_steps`` of a worker's
 steps; ``get_eval_weights`` -> ``Evaluator.evaluate`` every ``eval_interval_s``.
 """
@@ -16,9 +18,10 @@ from collections import deque
 from typing import Any
 
 import ray
-from ray.exceptions import RayActorError
+from ray.exceptions import OwnerDiedError, RayActorError
 
 from robogym_ray.experience.rollout import RolloutResult
+from robogym_ray.supervision.restart_policy import FaultCause
 from robogym_ray.training import setup, stats
 from robogym_ray.training.evals import EvalSchedule
 from robogym_ray.training.finish import finish
@@ -72,8 +75,10 @@ class TrainingLoop:
                 logger.scalar("episode/return", ep.ret, self.stats.env_steps)
                 logger.scalar("episode/length", ep.length, self.stats.env_steps)
             logger.advance(result.steps)
-            if result.batch is not None:
-                self.stats.transitions_sent += len(result.batch["reward"])
+            self.stats.transitions_sent += result.transitions
+            if result.learner_call is not None:  # the worker sent its batch to the learner
+                learner_calls.append(result.learner_call)
+            elif result.batch is not None:
                 learner_calls.append(p.learner.add.remote(result.batch))
             self._drain_learner(learner_calls, block=len(learner_calls) > 2)
             self._maybe_sync(slot, result.steps)
@@ -100,17 +105,39 @@ class TrainingLoop:
         """The next finished call; once collecting is done and only real-robot calls remain,
         waits for them at most ``real_robot_wait_s`` (empty list: they did not return)."""
         if not (self._done() and all(s.kind == "real" for s in pending.values())):
-            return ray.wait(list(pending), num_returns=1)[0]
+            return self._wait_watched(pending)
         if self._real_deadline is None:
             self._real_deadline = time.perf_counter() + self.cfg.real_robot_wait_s
         left = max(0.0, self._real_deadline - time.perf_counter())
         return ray.wait(list(pending), num_returns=1, timeout=left)[0]
+
+    def _wait_watched(self, pending: dict[Any, WorkerSlot]) -> list[Any]:
+        """The next finished call. A simulated worker's call older than ``worker_deadline_s``
+        is stuck (a simulation hung in a physics step cannot be cut off from inside): its
+        worker is killed, so its call fails and the worker is replaced like a dead one."""
+        deadline = self.cfg.worker_deadline_s
+        while True:
+            now = time.perf_counter()
+            sims = [s for s in pending.values() if s.kind == "sim" and s.call_started < now]
+            left = min((s.call_started + deadline - now for s in sims), default=None)
+            ready = ray.wait(list(pending), num_returns=1,
+                             timeout=None if left is None else max(left, 0.0))[0]  # fmt: skip
+            if ready:
+                return ready
+            for slot in sims:
+                if now - slot.call_started >= deadline:
+                    log.warning("rollout worker %d: no answer in %g s; killed as hung",
+                                slot.index, deadline)  # fmt: skip
+                    self.stats.restarts[FaultCause.HUNG.value] += 1
+                    slot.call_started = float("inf")  # killed once; its call fails next
+                    ray.kill(slot.handle)
 
     def _wall(self) -> float:
         return time.perf_counter() - self.started
 
     def _collect(self, slot: WorkerSlot) -> Any:
         scale = setup.noise_scale(self.cfg, self.stats.env_steps)
+        slot.call_started = time.perf_counter()
         return slot.handle.collect.remote(self.cfg.steps_per_call, scale)
 
     def _drain_learner(self, calls: deque[Any], block: bool, all_: bool = False) -> None:
@@ -118,7 +145,7 @@ class TrainingLoop:
             ref = calls.popleft()
             try:
                 metrics = ray.get(ref)
-            except RayActorError:
+            except (RayActorError, OwnerDiedError):  # learner died, or the worker that sent it
                 # The learner died mid-call; Ray restarts it from its checkpoint. This batch
                 # is lost (counted), the next ones go to the restarted learner.
                 self.stats.learner_failures += 1
@@ -148,6 +175,6 @@ class TrainingLoop:
             first_learner_step=self.p.first_learner_step,
             noise_scale=setup.noise_scale(self.cfg, self.stats.env_steps),
             weights_versions=[w.weights_version for w in self.p.workers if w.alive],
-            restarts=self.p.restart_counts(),
+            restarts=self.p.restart_counts() if self.p.supervision else self.stats.restarts,
             best_snapshot_rate=None if best is None else best[0],
         )

@@ -10,6 +10,7 @@ from typing import Any
 import ray
 
 from robogym_ray.distributed import remote
+from robogym_ray.envs.inprocess import InProcessServerProvider
 from robogym_ray.experience.rollout import box_dims, make_gym_env
 from robogym_ray.learner.config import D4PGConfig
 from robogym_ray.robots.emulation import EmulationConfig
@@ -72,7 +73,8 @@ class Program:
         self.workers = self._start_workers()
         if cfg.evaluator:
             kwargs = self._env_kwargs(None) | setup.evaluator_env_kwargs(cfg, env_id)
-            self.evaluator = remote.EvaluatorActor.options(num_cpus=cfg.evaluator_cpus).remote(
+            options = {"num_cpus": cfg.evaluator_cpus, **self._sim_options()}
+            self.evaluator = remote.EvaluatorActor.options(**options).remote(
                 make_gym_env(env_id, kwargs), d4pg,
                 seed=cfg.seed + 10_000, video_every_s=cfg.video_interval_s,
             )  # fmt: skip
@@ -80,16 +82,26 @@ class Program:
         self.selector = SnapshotSelector(checkpoints) if selecting else None
 
     def _env_kwargs(self, index: int | None) -> dict[str, Any]:
-        """Sim envs lease their servers from the supervisor, as holder ``worker-INDEX`` (the
-        evaluator, index None: ``evaluator``); the first ``emulated_workers`` lease emulated
-        robots, the evaluator never."""
-        if self.supervision is None:
+        """Sim envs build their robots in their own process (``sim_path="inprocess"``) or lease
+        servers from the supervisor, as holder ``worker-INDEX`` (the evaluator, index None:
+        ``evaluator``); the first ``emulated_workers`` get emulated robots, the evaluator never."""
+        if not self.preset.env_id.startswith("RoboGymRay/"):
             return {}
         emulated = (
             self.emulation if index is not None and index < self.cfg.emulated_workers else None
         )
+        if self.supervision is None:
+            return {"provider": InProcessServerProvider(emulation=emulated)}
         holder = "evaluator" if index is None else f"worker-{index}"
         return {"provider": self.supervision.provider(emulated, holder=holder)}
+
+    def _sim_options(self) -> dict[str, Any]:
+        """Ray placement of a simulated worker: with in-process robots, ``server_resource``
+        places the worker itself (its robots run in it)."""
+        cfg = self.cfg
+        if cfg.sim_path == "inprocess" and cfg.server_resource:
+            return {"resources": {cfg.server_resource: 0.01}}
+        return {}
 
     def _start_workers(self) -> list[WorkerSlot]:
         cfg = self.cfg
@@ -108,12 +120,14 @@ class Program:
         cfg = self.cfg
         factory = real_env or make_gym_env(self.preset.env_id, self._env_kwargs(i))
         name = f"rollout-{self.run_dir.name}-{i}" + (f"-{generation}" if generation else "")
+        placement = {} if real_env else self._sim_options()
         return remote.RolloutActor.options(
-            num_cpus=cfg.worker_cpus, name=name, namespace=remote.NAMESPACE
+            num_cpus=cfg.worker_cpus, name=name, namespace=remote.NAMESPACE, **placement
         ).remote(
             factory, self.d4pg, index=i, sigma=self._sigmas[i], seed=cfg.seed + i,
             random_steps=cfg.random_steps,
             revisits=setup.revisits_for(cfg, i) if real_env is None else None,
+            num_envs=1 if real_env else cfg.envs_per_worker, learner=self.learner,
         )  # fmt: skip
 
     def replace_worker(self, slot: WorkerSlot) -> bool:

@@ -145,8 +145,9 @@ class Supervision:
 
 
 def start_supervision(cfg: TrainConfig, env_id: str, run_name: str) -> Supervision | None:
-    """Supervision for RoboGymRay Sim tasks; None for other envs (e.g. Pendulum-v1)."""
-    if not env_id.startswith("RoboGymRay/"):
+    """Supervision for RoboGymRay Sim tasks on the gRPC path; None for in-process simulation
+    (the workers supervise their own) and for other envs (e.g. Pendulum-v1)."""
+    if not env_id.startswith("RoboGymRay/") or cfg.sim_path != "grpc":
         return None
     resources = ((cfg.server_resource, 0.01),) if cfg.server_resource else ()
     running = remote.get_supervisor()

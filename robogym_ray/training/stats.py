@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from robogym_ray.envs.outcomes import rates
+from robogym_ray.supervision.restart_policy import FaultCause
 
 if TYPE_CHECKING:  # the rollout worker imports torch; these counters need none of it
     from robogym_ray.experience.rollout import Episode, RolloutResult
@@ -28,6 +29,8 @@ class WorkerSlot:
     alive: bool = True
     generation: int = 0
     """How many times the worker was replaced."""
+    call_started: float = 0.0
+    """``time.perf_counter()`` when its running ``collect`` call was sent."""
 
 
 @dataclass
@@ -51,6 +54,11 @@ class RunStats:
     revisits: int = 0
     revisit_statuses: deque[str] = field(default_factory=lambda: deque(maxlen=100))
     returns: deque[float] = field(default_factory=lambda: deque(maxlen=100))
+    restarts: Counter[str] = field(
+        default_factory=lambda: Counter({cause.value: 0 for cause in FaultCause})
+    )
+    """Rebuilds of in-process simulations by cause, as the workers reported them (the gRPC
+    path's restarts are the supervisor's count), plus workers killed past their deadline."""
     learner: dict[str, float] = field(default_factory=dict)
     eval: dict[str, float] = field(default_factory=dict)
     eval_history: list[dict[str, float]] = field(default_factory=list)
@@ -66,6 +74,8 @@ def record(stats: RunStats, result: RolloutResult) -> list[Episode]:
     stats.dropped_steps += result.dropped
     stats.robot_errors += result.robot_errors
     stats.worker_steps[result.worker] = stats.worker_steps.get(result.worker, 0) + result.steps
+    for cause, n in result.faults.items():
+        stats.restarts[FaultCause.parse(cause).value] += n
     counted = []
     for ep in result.episodes:
         stats.episodes += 1

@@ -81,6 +81,8 @@ def test_navigation_run_completes_with_tensorboard_scalars(tmp_path: Path) -> No
     summary = run_training(cfg)
     assert summary["env_steps"] >= 3000
     assert summary["learner_steps"] > 0 and summary["episodes"] > 0
+    # Workers send their batches to the learner themselves: every transition reached replay.
+    assert summary["lost_transitions"] == 0
     # Revisits are counted apart from the task's own starts (whose rates train/ reports).
     assert 0 < summary["revisited_episodes"] < summary["episodes"]
     assert summary["explore/revisit_fraction"] > 0
@@ -117,6 +119,8 @@ def test_killing_a_robot_server_a_worker_and_the_learner_mid_run(tmp_path: Path)
     cfg = TrainConfig(
         task=NAV,
         workers=2,
+        sim_path="grpc",  # supervised robot-server actors, one per worker
+        envs_per_worker=1,
         total_steps=3000,
         logdir=str(tmp_path),
         run_name=run,
