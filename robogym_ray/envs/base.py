@@ -6,8 +6,8 @@ from* and *what the env may assume*, not in the task:
 * **Sim** (``real_robot=False``): the server comes from a ``ServerProvider`` (default: the robot
   core in this process, built on first reset and called without the wire, so
   ``gymnasium.make(id)`` needs nothing running; ``provider=EmbeddedServerProvider()`` puts a
-  gRPC robot server in between; ``rs_address=`` pins one). A ``RobotServerError`` mid-episode is reported to the lease,
-  a new lease is acquired and the episode ends with ``truncated=True`` and
+  gRPC robot server in between; ``rs_address=`` pins one). A ``RobotServerError`` mid-episode
+  is reported to the lease, a new lease is acquired and the episode ends with ``truncated=True`` and
   ``info["final_status"] == "server_restarted"`` - a restart is invisible otherwise. A failure in
   ``reset`` is retried once on a fresh lease.
 * **Real** (``real_robot=True``): ``rs_address="host:port"`` of a running robot server is

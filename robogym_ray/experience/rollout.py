@@ -2,9 +2,9 @@
 
 The Ray program wraps it in an actor; tests drive it directly. One ``collect`` call runs a fixed
 number of env steps (one batched policy forward per round of the K envs) and returns the finished
-n-step transitions, the episodes that ended, and counters. When the robot server fails mid-episode (the env ends the episode with
-``final_status == "server_restarted"``), the unfinished n-step window is dropped, so no
-transition in replay ever spans a crash.
+n-step transitions, the episodes that ended, and counters. When the robot server fails
+mid-episode (the env ends the episode with ``final_status == "server_restarted"``), the unfinished
+n-step window is dropped, so no transition in replay ever spans a crash.
 """
 
 from __future__ import annotations
@@ -215,9 +215,7 @@ class RolloutWorker:
         slot.obs = next_obs
         if terminated or truncated or status == SERVER_RESTARTED:
             ended = status or ("truncated" if truncated else "terminated")
-            result.episodes.append(
-                Episode(slot.ret, slot.length, ended, self.index, slot.start[1])
-            )
+            result.episodes.append(Episode(slot.ret, slot.length, ended, self.index, slot.start[1]))
             if self.revisits is not None:
                 self.revisits.record(*slot.start, status)
             slot.ret, slot.length = 0.0, 0

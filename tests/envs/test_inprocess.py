@@ -24,6 +24,11 @@ NAV = "RoboGymRay/NoObstacleNavigationMir100Sim-v0"
 UR = "RoboGymRay/EndEffectorPositioningRoboGymUR10Sim-v0"
 
 
+def wire_bytes(msg: pb.State) -> bytes:
+    """A state message as bytes (map keys sorted: protobuf leaves their order open)."""
+    return msg.SerializeToString(deterministic=True)
+
+
 def episode(env_id: str, provider: Any, seed: int, steps: int) -> list[tuple[Any, ...]]:
     """Every state message, observation, reward and end of a seeded episode with seeded
     random actions."""
@@ -31,11 +36,11 @@ def episode(env_id: str, provider: Any, seed: int, steps: int) -> list[tuple[Any
     rng = np.random.default_rng(seed)
     try:
         obs, _ = env.reset(seed=seed)
-        out: list[tuple[Any, ...]] = [(env.unwrapped._last_msg.SerializeToString(deterministic=True), obs)]
+        out: list[tuple[Any, ...]] = [(wire_bytes(env.unwrapped._last_msg), obs)]
         for _ in range(steps):
             action = rng.uniform(-1, 1, env.action_space.shape)
             obs, reward, terminated, truncated, info = env.step(action)
-            msg = env.unwrapped._last_msg.SerializeToString(deterministic=True)
+            msg = wire_bytes(env.unwrapped._last_msg)
             out.append((msg, obs, reward, terminated, truncated, info.get("final_status")))
             if terminated or truncated:
                 break
@@ -66,11 +71,11 @@ def refusal(env_id: str, provider: Any, bad: pb.State) -> str:
     env = gym.make(env_id, provider=provider)
     try:
         env.reset(seed=1)
-        before = env.unwrapped.client.get_state().SerializeToString(deterministic=True)
+        before = wire_bytes(env.unwrapped.client.get_state())
         with pytest.raises(RobotServerError) as info:
             env.unwrapped.client.set_state(bad)
         assert info.value.cause == "rejected"
-        assert env.unwrapped.client.get_state().SerializeToString(deterministic=True) == before  # untouched
+        assert wire_bytes(env.unwrapped.client.get_state()) == before  # untouched
         return re.sub(r"inprocess:[\w#]+|127\.0\.0\.1:\d+", "ADDRESS", str(info.value))
     finally:
         env.close()
