@@ -2,16 +2,19 @@
 
     nice python benchmarks/envs.py [--steps 2000] [--rounds 3] [--write FILE]
 
-For each env (Sim variant, embedded robot server in simulated time, as ``gymnasium.make``
-builds it) three rates are measured against the same robot, scene and options:
+For each env (Sim variant, simulated time) four rates are measured against the same robot,
+scene and options, all in one process on one core:
 
-* ``env``: ``env.step`` with random actions, resets excluded from the timing (their count is
-  reported); includes gymnasium's wrappers, action checks, observation and reward.
+* ``env``: ``env.step`` as ``gymnasium.make`` builds it (the robot core in process, no wire),
+  random actions, resets excluded from the timing (their count is reported); includes
+  gymnasium's wrappers, action checks, observation and reward.
+* ``env (gRPC)``: the same env with ``provider=EmbeddedServerProvider()``: a robot server on
+  loopback gRPC in between (the path before in-process simulation, and robo-gym's).
 * ``grpc``: SendActionGetState calls per second through gRPC (our client, loopback) with a
   constant valid action - what the env pays per step at the wire.
 * ``core``: ``RobotServerCore.send_action_get_state`` in-process, no gRPC - the simulation.
 
-Rounds alternate between the three; the best round of each is reported.
+Rounds alternate between the four; the best round of each is reported.
 """
 
 from __future__ import annotations
@@ -23,11 +26,13 @@ import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
 
 import robogym_ray  # noqa: F401 - registers the ids
+from robogym_ray.envs.servers import EmbeddedServerProvider
 from robogym_ray.envs.ur_common import to_ros
 from robogym_ray.protocol.client import RobotServerClient
 from robogym_ray.robots.server import start_robot_server
@@ -40,8 +45,8 @@ Bench = Callable[[int], float]
 """``run(steps) -> seconds``."""
 
 
-def env_bench(env_id: str) -> tuple[Bench, list[int]]:
-    env = gym.make(env_id)
+def env_bench(env_id: str, **kwargs: Any) -> tuple[Bench, list[int]]:
+    env = gym.make(env_id, **kwargs)
     env.reset(seed=0)
     resets = [0]
 
@@ -91,8 +96,9 @@ def server_benches(env_id: str) -> tuple[Bench, Bench]:
 
 def measure(env_id: str, steps: int, rounds: int) -> dict[str, float]:
     env_run, resets = env_bench(env_id)
+    wire_env_run, _ = env_bench(env_id, provider=EmbeddedServerProvider())
     grpc_run, core_run = server_benches(env_id)
-    benches = {"env": env_run, "grpc": grpc_run, "core": core_run}
+    benches = {"env": env_run, "env_grpc": wire_env_run, "grpc": grpc_run, "core": core_run}
     for run in benches.values():
         run(min(100, steps))  # warm-up
     best = dict.fromkeys(benches, 0.0)
@@ -111,8 +117,9 @@ def machine() -> str:
 
 def report(results: dict[str, dict[str, float]], args: argparse.Namespace) -> str:
     rows = [
-        f"| `{env_id}` | {r['env']:.0f} | {r['grpc']:.0f} | {r['core']:.0f} | "
-        f"{r['env'] / r['grpc']:.2f} | {r['resets']:.0f} |"
+        f"| `{env_id}` | {r['core']:.0f} | {r['env']:.0f} | {r['env_grpc']:.0f} | "
+        f"{r['grpc']:.0f} | {r['env'] / r['core']:.2f} | {r['env_grpc'] / r['core']:.2f} | "
+        f"{r['resets']:.0f} |"
         for env_id, r in results.items()
     ]
     return "\n".join(
@@ -122,18 +129,17 @@ def report(results: dict[str, dict[str, float]], args: argparse.Namespace) -> st
             f"Date {datetime.date.today().isoformat()}; machine: {machine()}; Python "
             f"{sys.version.split()[0]}.",
             f"Command: `nice python benchmarks/envs.py --steps {args.steps} --rounds {args.rounds}`"
-            " (best of the rounds; embedded server, simulated time, one process).",
+            " (best of the rounds, alternating; simulated time, one process, one core).",
             "",
-            "| env | env steps/s | SendActionGetState/s (gRPC) | in-process core calls/s | "
-            "env / gRPC | resets during timing |",
-            "|---|---|---|---|---|---|",
+            "| env | bare core calls/s | env steps/s (in-process) | env steps/s (gRPC) | "
+            "SendActionGetState/s (gRPC) | in-process / core | gRPC env / core | resets |",
+            "|---|---|---|---|---|---|---|---|",
             *rows,
             "",
-            "`env / gRPC` is the share of the wire rate the env keeps: the rest is gymnasium's",
-            "wrappers, action checks, observation and reward. The gap between gRPC and core is",
-            "the loopback gRPC round trip (client and server share one process and its GIL); the",
-            "core rate is the simulation itself (MiR: two 541-beam ray casts per 0.1 s cycle;",
-            "UR: arm control ticks and contact checks).",
+            "The gap between an env and the bare core is gymnasium's wrappers, action checks,",
+            "observation and reward (and, for the gRPC env, the loopback round trip: client and",
+            "server share one process and its GIL); the core rate is the simulation itself (MiR:",
+            "two 541-beam ray casts per 0.1 s cycle; UR: arm control ticks and contact checks).",
             "",
         ]
     )

@@ -1,7 +1,8 @@
 """Gymnasium ids ``RoboGymRay/<Task><Robot><Sim|Rob>-v0``, registered in a loop from one table.
 
-Registration imports nothing heavy: entry points are strings, resolved by ``gymnasium.make``.
-``Sim`` ids get a simulated robot server (embedded by default, see ``envs.servers``); ``Rob``
+Registration imports nothing heavy: entry points are strings, resolved by ``gymnasium.make``;
+``gymnasium.make_vec(id, num_envs=K)`` builds ``envs.vector.RoboGymVectorEnv``.
+``Sim`` ids get a simulated robot (in-process by default, see ``envs.servers``); ``Rob``
 ids need ``rs_address="host:port"`` of a running robot server (real robot or emulation):
 ``gymnasium.make("RoboGymRay/ObstacleAvoidanceMir100Rob-v0", rs_address="10.0.0.5:50051")``.
 
@@ -15,6 +16,7 @@ from typing import Any
 
 import gymnasium as gym
 
+from robogym_ray.envs.vector import vector_entry_point
 from robogym_ray.errors import ConfigError
 
 _MIR = "robogym_ray.envs.mir100_tasks:"
@@ -77,6 +79,7 @@ def register_all() -> list[str]:
                         entry_point=entry_point,
                         kwargs=kwargs,
                         nondeterministic=task in NONDETERMINISTIC,
+                        vector_entry_point=vector_entry_point(name),
                     )
                 ids.append(name)
     return ids
