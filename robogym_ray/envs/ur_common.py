@@ -20,7 +20,7 @@ from robogym_ray.envs.render.ur import draw_ur
 from robogym_ray.errors import ConfigError, InvalidStateError
 from robogym_ray.protocol import robot_server_pb2 as pb
 from robogym_ray.protocol.client import RobotServerClient
-from robogym_ray.robots.ur_model import UR_MODELS
+from robogym_ray.robots.ur.geometry import UR_MODELS
 
 JOINTS = ("base", "shoulder", "elbow", "wrist_1", "wrist_2", "wrist_3")
 POSITION_KEYS = tuple(f"{j}_joint_position" for j in JOINTS)

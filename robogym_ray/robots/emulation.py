@@ -34,7 +34,7 @@ import numpy as np
 
 from robogym_ray.errors import ConfigError
 from robogym_ray.robots.base import SimRobot, StateRequest, StateSnapshot
-from robogym_ray.robots.mir100_state import OBSTACLES as OBSTACLE_SLOTS
+from robogym_ray.robots.mir100.state import OBSTACLES as OBSTACLE_SLOTS
 
 LASER_GROUPS = ("f_scan", "b_scan")
 """MiR100 sensor groups that hold laser ranges."""
@@ -184,8 +184,8 @@ def scale_dynamics(robot: SimRobot, config: EmulationConfig, seed: int | None) -
     """
     if config.velocity_scale == 1.0 and config.acceleration_scale == 1.0:
         return robot
-    from robogym_ray.robots.mir100 import Mir100Robot
-    from robogym_ray.robots.ur import URArm
+    from robogym_ray.robots.mir100.model import Mir100Robot
+    from robogym_ray.robots.ur.model import URArm
 
     v, a = config.velocity_scale, config.acceleration_scale
     if isinstance(robot, Mir100Robot):

@@ -20,20 +20,20 @@ raises ConfigError on an option or value it does not know.
 """
 
 ROBOTS: dict[str, str] = {
-    "mir100": "robogym_ray.robots.mir100:make_mir100",
-    "ur3": "robogym_ray.robots.ur:make_ur",
-    "ur3e": "robogym_ray.robots.ur:make_ur",
-    "ur5": "robogym_ray.robots.ur:make_ur",
-    "ur5e": "robogym_ray.robots.ur:make_ur",
-    "ur10": "robogym_ray.robots.ur:make_ur",
-    "ur10e": "robogym_ray.robots.ur:make_ur",
-    "ur16e": "robogym_ray.robots.ur:make_ur",
+    "mir100": "robogym_ray.robots.mir100.model:make_mir100",
+    "ur3": "robogym_ray.robots.ur.model:make_ur",
+    "ur3e": "robogym_ray.robots.ur.model:make_ur",
+    "ur5": "robogym_ray.robots.ur.model:make_ur",
+    "ur5e": "robogym_ray.robots.ur.model:make_ur",
+    "ur10": "robogym_ray.robots.ur.model:make_ur",
+    "ur10e": "robogym_ray.robots.ur.model:make_ur",
+    "ur16e": "robogym_ray.robots.ur.model:make_ur",
 }
 
 
 OPTION_PARSERS: dict[str, str] = {
-    "robogym_ray.robots.mir100:make_mir100": "robogym_ray.robots.mir100_config:parse_options",
-    "robogym_ray.robots.ur:make_ur": "robogym_ray.robots.ur_config:parse_options",
+    "robogym_ray.robots.mir100.model:make_mir100": "robogym_ray.robots.mir100.config:parse_options",
+    "robogym_ray.robots.ur.model:make_ur": "robogym_ray.robots.ur.config:parse_options",
 }
 """Factory -> the option parser that factory builds its config with: ``parser(model, scene,
 options)`` raises ConfigError exactly as the factory would, without PyBullet or a server."""

@@ -8,12 +8,12 @@ from dataclasses import dataclass
 
 from robogym_ray.errors import ConfigError, UnknownRobotError
 from robogym_ray.robots.command_handler import CommandHandlerConfig
-from robogym_ray.robots.mir100_drive import DriveLimits
-from robogym_ray.robots.mir100_scenes import check_scene, scene_for_world
+from robogym_ray.robots.mir100.drive import DriveLimits
+from robogym_ray.robots.mir100.scenes import check_scene, scene_for_world
 from robogym_ray.robots.validation import parse_option_number, preview
 
 LASER_CASTERS = ("boxes", "bullet")
-"""Ray casters ``Mir100Config.laser_caster`` accepts (see ``mir100_lasers``)."""
+"""Ray casters ``Mir100Config.laser_caster`` accepts (see ``lasers``)."""
 
 
 @dataclass(frozen=True)
