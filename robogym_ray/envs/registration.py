@@ -14,6 +14,7 @@ from __future__ import annotations
 from typing import Any
 
 import gymnasium as gym
+from gymnasium.envs.registration import load_env_creator
 
 from robogym_ray.errors import ConfigError
 
@@ -89,3 +90,24 @@ def variant_id(env_id: str, variant: str) -> str:
             if env_id.endswith(suffix):
                 return env_id[: -len(suffix)] + variant.capitalize() + "-v0"
     raise ConfigError(f"{env_id} is not a RoboGymRay/<Task><Robot><Sim|Rob>-v0 id")
+
+
+def env_robot(env_id: str) -> str:
+    """The registry name of the robot ``env_id`` drives (``mir100``, ``ur10`` ...): the first
+    element of its ``server_spec()``, read from an env that is built but never connected.
+
+    Raises:
+        ConfigError: ``env_id`` is not registered.
+    """
+    register_all()
+    try:
+        spec = gym.spec(env_id)
+    except gym.error.Error as err:
+        raise ConfigError(f"unknown env id {env_id!r}: {err}") from None
+    cls = spec.entry_point if callable(spec.entry_point) else load_env_creator(spec.entry_point)
+    # A Rob env with a placeholder address builds no server and opens no connection.
+    env = cls(**{**spec.kwargs, "real_robot": True, "rs_address": "127.0.0.1:1"})
+    try:
+        return env.server_spec()[0]
+    finally:
+        env.close()

@@ -36,6 +36,7 @@ import numpy as np
 
 from robogym_ray.errors import InvalidActionError
 from robogym_ray.robots.base import SimRobot, StateRequest, StateSnapshot
+from robogym_ray.robots.mir100.card import CARD
 from robogym_ray.robots.mir100.config import Mir100Config, parse_options
 from robogym_ray.robots.mir100.drive import BaseState, clip, integrate, wrap_angle
 from robogym_ray.robots.mir100.lasers import BACK, FRONT, BoxCaster, BulletCaster, Caster, LaserPair
@@ -48,8 +49,8 @@ from robogym_ray.robots.mir100.scenes import (
 from robogym_ray.robots.mir100.state import GROUPS, compose_state, parse_set_state
 from robogym_ray.robots.sim import PyBulletWorld
 
-FOOTPRINT = (0.9, 0.58, 0.3)
-"""Base collision box (x, y, z size in m), as the URDF's base box."""
+FOOTPRINT: tuple[float, float, float] = CARD.geometry.footprint  # type: ignore[assignment]
+"""Base collision box (x, y, z size in m), as the URDF's base box (the card's footprint)."""
 FOOTPRINT_OFFSET = (0.037646, 0.0, 0.20)
 """Box centre relative to the pose point (drive-axle centre on the floor), robot frame (m)."""
 # The base belongs to no group the rays or the broadphase look at (mask 0), so the scanners,
