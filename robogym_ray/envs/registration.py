@@ -23,20 +23,34 @@ _MIRS = "robogym_ray.envs.mir100_sectors:"
 _UR = "robogym_ray.envs.ur_tasks:"
 _URA = "robogym_ray.envs.ur_avoidance:"
 
-TASKS: tuple[tuple[str, str, tuple[str, ...]], ...] = (
-    # (task name, entry point, robots: "Mir100" or UR model ids)
-    ("NoObstacleNavigation", _MIR + "NoObstacleNavigationMir100", ("Mir100",)),
-    ("ObstacleAvoidance", _MIR + "ObstacleAvoidanceMir100", ("Mir100",)),
+RobotVariant = tuple[str, dict[str, Any]]
+"""(robot as spelled in the id, env kwargs that pick it)."""
+_MIR100: tuple[RobotVariant, ...] = (("Mir100", {}),)
+
+
+def _ur(*models: str) -> tuple[RobotVariant, ...]:
+    """UR ids (``UR10``) and the ``ur_model`` kwarg (``ur10``) of the UR task classes."""
+    return tuple((m, {"ur_model": m.lower()}) for m in models)
+
+
+TASKS: tuple[tuple[str, str, tuple[RobotVariant, ...]], ...] = (
+    # (task name, entry point, robots)
+    ("NoObstacleNavigation", _MIR + "NoObstacleNavigationMir100", _MIR100),
+    ("ObstacleAvoidance", _MIR + "ObstacleAvoidanceMir100", _MIR100),
     # The same task observing the nearest range per laser sector (not robo-gym's observation).
-    ("ObstacleAvoidanceSectors", _MIRS + "ObstacleAvoidanceSectorsMir100", ("Mir100",)),
+    ("ObstacleAvoidanceSectors", _MIRS + "ObstacleAvoidanceSectorsMir100", _MIR100),
     # Problem 2 of the paper (15 obs / 6 actions); the UR10 is the paper's robot.
-    ("EndEffectorPositioning", _UR + "EndEffectorPositioningUR", ("UR3", "UR5", "UR10", "UR16e")),
+    (
+        "EndEffectorPositioning",
+        _UR + "EndEffectorPositioningUR",
+        _ur("UR3", "UR5", "UR10", "UR16e"),
+    ),
     # robo-gym 2.0.1's EndEffectorPositioningURSim-v0 (27 obs / 5 actions).
-    ("EndEffectorPositioningRoboGym", _UR + "EndEffectorPositioningRoboGymUR", ("UR5", "UR10")),
-    ("EmptyEnvironment", _UR + "EmptyEnvironmentUR", ("UR5", "UR10")),
+    ("EndEffectorPositioningRoboGym", _UR + "EndEffectorPositioningRoboGymUR", _ur("UR5", "UR10")),
+    ("EmptyEnvironment", _UR + "EmptyEnvironmentUR", _ur("UR5", "UR10")),
     # Avoidance tasks: object trajectories and reset poses are laid out for the UR5 workspace.
-    ("BasicAvoidance", _URA + "BasicAvoidanceUR", ("UR5",)),
-    ("AvoidanceRaad2022", _URA + "AvoidanceRaad2022UR", ("UR5",)),
+    ("BasicAvoidance", _URA + "BasicAvoidanceUR", _ur("UR5")),
+    ("AvoidanceRaad2022", _URA + "AvoidanceRaad2022UR", _ur("UR5")),
 )
 NONDETERMINISTIC = frozenset({"AvoidanceRaad2022"})
 """Tasks whose reset is not a function of the env seed alone: the sphere's spline is drawn by the
@@ -66,11 +80,9 @@ def register_all() -> list[str]:
     """Register every id (idempotent); returns them in table order."""
     ids = []
     for task, entry_point, robots in TASKS:
-        for robot in robots:
+        for robot, robot_kwargs in robots:
             for variant, real in VARIANTS.items():
-                kwargs: dict[str, Any] = {"real_robot": real}
-                if robot != "Mir100":
-                    kwargs["ur_model"] = robot.lower()
+                kwargs: dict[str, Any] = {"real_robot": real, **robot_kwargs}
                 name = env_id(task, robot, variant)
                 if name not in gym.registry:
                     gym.register(
