@@ -142,7 +142,7 @@ def _lab(ax: Any) -> None:
     from matplotlib.patches import Polygon
 
     from robogym_ray.envs.render.mir100 import box_corners
-    from robogym_ray.robots.mir100_scenes import LAB_ORIGIN, LAB_WALLS
+    from robogym_ray.robots.mir100.scenes import LAB_ORIGIN, LAB_WALLS
 
     for _, (cx, cy), half in LAB_WALLS:
         corners = box_corners((LAB_ORIGIN[0] + cx, LAB_ORIGIN[1] + cy), half, 0.0)
@@ -157,7 +157,7 @@ def _episode(ax: Any, ep: Mapping[str, Any], close_up: bool) -> None:
 
     from robogym_ray.envs.mir100_tasks import ObstacleAvoidanceMir100
     from robogym_ray.envs.render.mir100 import SUCCESS_RADIUS, box_corners
-    from robogym_ray.robots.mir100_scenes import CUBE_SIZE
+    from robogym_ray.robots.mir100.scenes import CUBE_SIZE
 
     colour = STATUS_COLOURS.get(ep["final_status"], "tab:gray")
     xs, ys = zip(*ep["path"], strict=True)

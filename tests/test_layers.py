@@ -97,6 +97,35 @@ def test_the_low_layers_stay_low() -> None:
     assert "distributed" not in graph["experience"] | graph["supervision"] | graph["realrobot"]
 
 
+ROBOT_FAMILIES = frozenset(
+    p.name for p in (PACKAGE / "robots").iterdir() if (p / "card.py").is_file()
+)
+"""The robot folders: ``robots/<family>/`` with a ``card.py``."""
+
+
+def test_a_robot_folder_is_imported_only_by_itself_and_its_own_tasks() -> None:
+    """A robot is its folder: the shared robot side (``robots/*.py``) and every other folder
+    reach it through its card (the registry names card modules by string, not by import).
+    Only the envs' modules named after the family (``envs/ur_tasks.py``, ``envs/render/ur.py``)
+    may import it, and no robot folder imports another."""
+    assert {"mir100", "ur"} <= ROBOT_FAMILIES
+    offenders = []
+    for path in PACKAGE.rglob("*.py"):
+        rel = path.relative_to(PACKAGE)
+        for name in imports(path):
+            parts = name.split(".")
+            if parts[:2] != ["robogym_ray", "robots"] or len(parts) < 3:
+                continue
+            family = parts[2]
+            if family not in ROBOT_FAMILIES:
+                continue
+            own = rel.parts[:2] == ("robots", family)
+            tasks = rel.parts[0] == "envs" and rel.stem.startswith(family)
+            if not (own or tasks):
+                offenders.append(f"{rel} imports {name}")
+    assert offenders == []
+
+
 def test_a_sim_env_imports_neither_ray_nor_torch() -> None:
     code = (
         "import sys, gymnasium as gym, robogym_ray.envs\n"

@@ -15,6 +15,7 @@ from __future__ import annotations
 from typing import Any
 
 import gymnasium as gym
+from gymnasium.envs.registration import load_env_creator
 
 from robogym_ray.envs.vector import vector_entry_point
 from robogym_ray.errors import ConfigError
@@ -24,20 +25,34 @@ _MIRS = "robogym_ray.envs.mir100_sectors:"
 _UR = "robogym_ray.envs.ur_tasks:"
 _URA = "robogym_ray.envs.ur_avoidance:"
 
-TASKS: tuple[tuple[str, str, tuple[str, ...]], ...] = (
-    # (task name, entry point, robots: "Mir100" or UR model ids)
-    ("NoObstacleNavigation", _MIR + "NoObstacleNavigationMir100", ("Mir100",)),
-    ("ObstacleAvoidance", _MIR + "ObstacleAvoidanceMir100", ("Mir100",)),
+RobotVariant = tuple[str, dict[str, Any]]
+"""(robot as spelled in the id, env kwargs that pick it)."""
+_MIR100: tuple[RobotVariant, ...] = (("Mir100", {}),)
+
+
+def _ur(*models: str) -> tuple[RobotVariant, ...]:
+    """UR ids (``UR10``) and the ``ur_model`` kwarg (``ur10``) of the UR task classes."""
+    return tuple((m, {"ur_model": m.lower()}) for m in models)
+
+
+TASKS: tuple[tuple[str, str, tuple[RobotVariant, ...]], ...] = (
+    # (task name, entry point, robots)
+    ("NoObstacleNavigation", _MIR + "NoObstacleNavigationMir100", _MIR100),
+    ("ObstacleAvoidance", _MIR + "ObstacleAvoidanceMir100", _MIR100),
     # The same task observing the nearest range per laser sector (not robo-gym's observation).
-    ("ObstacleAvoidanceSectors", _MIRS + "ObstacleAvoidanceSectorsMir100", ("Mir100",)),
+    ("ObstacleAvoidanceSectors", _MIRS + "ObstacleAvoidanceSectorsMir100", _MIR100),
     # Problem 2 of the paper (15 obs / 6 actions); the UR10 is the paper's robot.
-    ("EndEffectorPositioning", _UR + "EndEffectorPositioningUR", ("UR3", "UR5", "UR10", "UR16e")),
+    (
+        "EndEffectorPositioning",
+        _UR + "EndEffectorPositioningUR",
+        _ur("UR3", "UR5", "UR10", "UR16e"),
+    ),
     # robo-gym 2.0.1's EndEffectorPositioningURSim-v0 (27 obs / 5 actions).
-    ("EndEffectorPositioningRoboGym", _UR + "EndEffectorPositioningRoboGymUR", ("UR5", "UR10")),
-    ("EmptyEnvironment", _UR + "EmptyEnvironmentUR", ("UR5", "UR10")),
+    ("EndEffectorPositioningRoboGym", _UR + "EndEffectorPositioningRoboGymUR", _ur("UR5", "UR10")),
+    ("EmptyEnvironment", _UR + "EmptyEnvironmentUR", _ur("UR5", "UR10")),
     # Avoidance tasks: object trajectories and reset poses are laid out for the UR5 workspace.
-    ("BasicAvoidance", _URA + "BasicAvoidanceUR", ("UR5",)),
-    ("AvoidanceRaad2022", _URA + "AvoidanceRaad2022UR", ("UR5",)),
+    ("BasicAvoidance", _URA + "BasicAvoidanceUR", _ur("UR5")),
+    ("AvoidanceRaad2022", _URA + "AvoidanceRaad2022UR", _ur("UR5")),
 )
 NONDETERMINISTIC = frozenset({"AvoidanceRaad2022"})
 """Tasks whose reset is not a function of the env seed alone: the sphere's spline is drawn by the
@@ -67,11 +82,9 @@ def register_all() -> list[str]:
     """Register every id (idempotent); returns them in table order."""
     ids = []
     for task, entry_point, robots in TASKS:
-        for robot in robots:
+        for robot, robot_kwargs in robots:
             for variant, real in VARIANTS.items():
-                kwargs: dict[str, Any] = {"real_robot": real}
-                if robot != "Mir100":
-                    kwargs["ur_model"] = robot.lower()
+                kwargs: dict[str, Any] = {"real_robot": real, **robot_kwargs}
                 name = env_id(task, robot, variant)
                 if name not in gym.registry:
                     gym.register(
@@ -92,3 +105,24 @@ def variant_id(env_id: str, variant: str) -> str:
             if env_id.endswith(suffix):
                 return env_id[: -len(suffix)] + variant.capitalize() + "-v0"
     raise ConfigError(f"{env_id} is not a RoboGymRay/<Task><Robot><Sim|Rob>-v0 id")
+
+
+def env_robot(env_id: str) -> str:
+    """The registry name of the robot ``env_id`` drives (``mir100``, ``ur10`` ...): the first
+    element of its ``server_spec()``, read from an env that is built but never connected.
+
+    Raises:
+        ConfigError: ``env_id`` is not registered.
+    """
+    register_all()
+    try:
+        spec = gym.spec(env_id)
+    except gym.error.Error as err:
+        raise ConfigError(f"unknown env id {env_id!r}: {err}") from None
+    cls = spec.entry_point if callable(spec.entry_point) else load_env_creator(spec.entry_point)
+    # A Rob env with a placeholder address builds no server and opens no connection.
+    env = cls(**{**spec.kwargs, "real_robot": True, "rs_address": "127.0.0.1:1"})
+    try:
+        return env.server_spec()[0]
+    finally:
+        env.close()

@@ -20,28 +20,19 @@ from robogym_ray.envs.render.ur import draw_ur
 from robogym_ray.errors import ConfigError, InvalidStateError
 from robogym_ray.protocol import robot_server_pb2 as pb
 from robogym_ray.protocol.client import RobotServerClient
-from robogym_ray.robots.ur_model import UR_MODELS
+from robogym_ray.robots.ur.geometry import POSITION_LIMITS, ROS_FROM_ENV, UR_MODELS
+from robogym_ray.robots.ur.state import JOINT_KEYS, POSITION_KEYS, RS_MODE_KEYS, VELOCITY_KEYS
 
-JOINTS = ("base", "shoulder", "elbow", "wrist_1", "wrist_2", "wrist_3")
-POSITION_KEYS = tuple(f"{j}_joint_position" for j in JOINTS)
-VELOCITY_KEYS = tuple(f"{j}_joint_velocity" for j in JOINTS)
-JOINT_MAX = np.array([2 * np.pi, 2 * np.pi, np.pi, 2 * np.pi, 2 * np.pi, 2 * np.pi])
+# The arm's geometry, limits and key names are the robot's (robots/ur/), defined there once.
+JOINTS = JOINT_KEYS
+JOINT_MAX = POSITION_LIMITS
 """Position limits (rad, symmetric), env order; identical for all seven models (spec e.2)."""
 RESET_TOLERANCE = 0.05
 """rad: a reset fails if any joint is farther than this from the request (robo-gym's check)."""
 
 
-def _pose_keys(prefix: str) -> tuple[str, ...]:
-    return tuple(f"{prefix}_to_ref_translation_{a}" for a in "xyz") + tuple(
-        f"{prefix}_to_ref_rotation_{a}" for a in "xyzw"
-    )
-
-
-_ROBOT_KEYS = (*POSITION_KEYS, *VELOCITY_KEYS, *_pose_keys("ee"), "in_collision")
 KEYS: dict[str, frozenset[str]] = {
-    "only_robot": frozenset(_ROBOT_KEYS),
-    "1object": frozenset(_ROBOT_KEYS + _pose_keys("object_0")),
-    "1moving2points": frozenset(_ROBOT_KEYS + _pose_keys("object_0") + _pose_keys("forearm")),
+    mode: frozenset(RS_MODE_KEYS[mode]) for mode in ("only_robot", "1object", "1moving2points")
 }
 """The exact ``state_dict`` key set of each rs_mode (spec c.2.1)."""
 
@@ -53,7 +44,7 @@ def normalize_joints(q: np.ndarray) -> np.ndarray:
 
 def to_ros(q_env: np.ndarray) -> np.ndarray:
     """Env -> ROS order ``[elbow, shoulder_lift, shoulder_pan, wrist_1, wrist_2, wrist_3]``."""
-    return np.asarray(q_env)[[2, 1, 0, 3, 4, 5]]
+    return np.asarray(q_env)[list(ROS_FROM_ENV)]
 
 
 def frame_xyz(sd: Mapping[str, float], prefix: str) -> np.ndarray:

@@ -25,7 +25,7 @@ from robogym_ray.envs.ur_common import (
 from robogym_ray.errors import ConfigError
 from robogym_ray.protocol import robot_server_pb2 as pb
 from robogym_ray.protocol.client import RobotServerClient
-from robogym_ray.robots.ur_model import URModel
+from robogym_ray.robots.ur.geometry import URModel
 
 PAPER_RADIUS_SCALE = 1.2 / 1.3
 """The paper's UR10 targets lie within 1.2 m; robo-gym's UR10 radius is 1.3 m (spec c.2.4)."""

@@ -11,15 +11,15 @@ With ``on_violation="refuse"`` out-of-limit actions are refused too.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
+from robogym_ray.envs.registration import env_robot
 from robogym_ray.errors import ConfigError, InvalidActionError
-
-TWO_PI = 2 * math.pi
+from robogym_ray.robots.card import RobotCard
+from robogym_ray.robots.registry import robot_card
 
 
 class UnsafeCommandError(InvalidActionError):
@@ -53,16 +53,23 @@ class SafetyConfig:
             raise ValueError(f"on_violation must be 'clip' or 'refuse', got {self.on_violation!r}")
 
     @classmethod
-    def mir100(cls) -> SafetyConfig:
-        """MiR100 twist [v, w]: the drive's limits 1.0 m/s and 1.5 rad/s (spec e.1)."""
-        return cls(low=(-1.0, -1.5), high=(1.0, 1.5))
+    def from_card(cls, card: RobotCard, max_step: float | None = None) -> SafetyConfig:
+        """The real robot's limits from its card (``RobotCard.safety``), e.g. the MiR100's
+        twist limits or the UR's absolute joint targets in ROS order (spec e.1, e.2).
 
-    @classmethod
-    def ur(cls, max_step: float | None = None) -> SafetyConfig:
-        """UR absolute joint targets in ROS order [elbow, lift, pan, w1, w2, w3] (spec e.2)."""
-        high = (math.pi, TWO_PI, TWO_PI, TWO_PI, TWO_PI, TWO_PI)
-        step = None if max_step is None else (max_step,) * 6
-        return cls(low=tuple(-h for h in high), high=high, max_step=step)
+        Args:
+            card: the robot's card.
+            max_step: one limit on every element's change between commands (overrides the
+                card's ``max_step``); None: the card's.
+
+        Raises:
+            ConfigError: the card knows no real robot.
+        """
+        limits = card.safety
+        if limits is None:
+            raise ConfigError(f"no real-robot safety limits known for robot {card.name!r}")
+        step = limits.max_step if max_step is None else (max_step,) * len(limits.low)
+        return cls(low=limits.low, high=limits.high, max_step=step)
 
 
 class SafetyFilter:
@@ -107,10 +114,12 @@ class SafetyFilter:
         raise UnsafeCommandError(f"unsafe command refused: {why}")
 
 
+def safety_for_robot(robot: str, max_step: float | None = None) -> SafetyConfig:
+    """Safety limits of the real robot ``robot`` (a registry name), from its card."""
+    return SafetyConfig.from_card(robot_card(robot), max_step=max_step)
+
+
 def safety_for(env_id: str) -> SafetyConfig:
-    """Safety limits for the real robot a task's Rob variant drives (MiR100 twist or UR joints)."""
-    if "Mir100" in env_id:
-        return SafetyConfig.mir100()
-    if "UR" in env_id:
-        return SafetyConfig.ur()
-    raise ConfigError(f"no real-robot safety limits known for {env_id}")
+    """Safety limits for the real robot a task's Rob variant drives: the card of the robot the
+    env names in its ``server_spec()``."""
+    return safety_for_robot(env_robot(env_id))

@@ -11,9 +11,11 @@ robot does, each difference configurable (``EmulationConfig``):
 * **actuation bias**: a constant offset added to every published command (a miscalibrated
   wheel-speed gain or joint zero offset);
 * **dynamics**: velocity limits (MiR100 twist, UR joint speeds) and MiR100 acceleration limits
-  scaled (the UR's controller is kinematic and has no acceleration limit to scale);
+  scaled (the UR's controller is kinematic and has no acceleration limit to scale): the config
+  fields the robot's card names (``RobotCard.emulation``);
 * **sensor noise**: Gaussian noise on laser ranges (clipped to the scanner's range) and on the
-  joint-encoder positions, from its own seeded RNG, so a run in simulated time is reproducible;
+  joint-encoder positions (the sensor groups the card names), from its own seeded RNG, so a
+  run in simulated time is reproducible;
 * **obstacles stay put** (MiR100): a real MiR server takes only the target from SetState, and
   robo-gym's Real env sends zeros for the three cube poses. Teleported to those zeros, the cubes
   would stand on the robot at the origin and pin it there. So all-zero cube poses leave the
@@ -34,12 +36,9 @@ import numpy as np
 
 from robogym_ray.errors import ConfigError
 from robogym_ray.robots.base import SimRobot, StateRequest, StateSnapshot
-from robogym_ray.robots.mir100_state import OBSTACLES as OBSTACLE_SLOTS
+from robogym_ray.robots.card import EmulationHooks, RobotCard
+from robogym_ray.robots.registry import CARDS
 
-LASER_GROUPS = ("f_scan", "b_scan")
-"""MiR100 sensor groups that hold laser ranges."""
-JOINT_GROUP = "joints"
-"""UR sensor group: 6 positions then 6 velocities."""
 DEFAULT_LASER_RANGE = (0.05, 29.0)
 """Clip of noisy ranges when the wrapped robot does not say its own (m)."""
 
@@ -101,6 +100,10 @@ class EmulatedRobot(SimRobot):
         self._bias_in: np.ndarray | None = None
         self._bias_out: np.ndarray | None = None
         inner_config = getattr(robot, "config", None)
+        card = _card_of(robot)
+        self.hooks: EmulationHooks = card.emulation if card else EmulationHooks()
+        fixed = self.hooks.fixed_obstacles
+        self._obstacle_slots = card.state.slot(fixed) if card and fixed else None
         self._laser_range = (
             getattr(inner_config, "laser_range_min", DEFAULT_LASER_RANGE[0]),
             getattr(inner_config, "laser_range_max", DEFAULT_LASER_RANGE[1]),
@@ -124,19 +127,20 @@ class EmulatedRobot(SimRobot):
 
     def read_sensors(self, groups: Iterable[str] | None = None) -> dict[str, np.ndarray]:
         values = self.inner.read_sensors(groups)
-        cfg = self.config
+        cfg, hooks = self.config, self.hooks
         if cfg.laser_noise_sigma > 0:
             low, high = self._laser_range
-            for group in LASER_GROUPS:
+            for group in hooks.laser_groups:
                 if group in values:
                     noisy = values[group] + self._rng.normal(
                         0.0, cfg.laser_noise_sigma, values[group].shape
                     )
                     values[group] = np.clip(noisy, low, high)
-        if cfg.joint_noise_sigma > 0 and JOINT_GROUP in values:
-            joints = values[JOINT_GROUP].copy()
-            joints[:6] += self._rng.normal(0.0, cfg.joint_noise_sigma, 6)
-            values[JOINT_GROUP] = joints
+        group, n = hooks.joint_group, hooks.joint_count
+        if cfg.joint_noise_sigma > 0 and group is not None and group in values:
+            joints = values[group].copy()
+            joints[:n] += self._rng.normal(0.0, cfg.joint_noise_sigma, n)
+            values[group] = joints
         return values
 
     def compose(self, groups: Mapping[str, np.ndarray]) -> StateSnapshot:
@@ -147,18 +151,19 @@ class EmulatedRobot(SimRobot):
 
     # -- internals ----------------------------------------------------------------------------
     def _cubes_stay(self, request: StateRequest) -> StateRequest:
-        """``request`` with all-zero MiR100 cube poses replaced by where the cubes stand."""
+        """``request`` with all-zero obstacle poses (the card's ``fixed_obstacles`` slot, the
+        MiR100's cubes) replaced by where the obstacles stand."""
         current = getattr(self.inner, "obstacle_poses", None)
-        state = request.state
-        if current is None or len(state) < OBSTACLE_SLOTS.stop:
+        state, slots = request.state, self._obstacle_slots
+        if current is None or slots is None or len(state) < slots.stop:
             return request
-        if not np.all(state[OBSTACLE_SLOTS] == 0.0):
+        if not np.all(state[slots] == 0.0):
             return request
         poses = current()
         if poses.size == 0:  # a scene without cubes ignores the slots anyway
             return request
         state = state.copy()
-        state[OBSTACLE_SLOTS] = poses.ravel()
+        state[slots] = poses.ravel()
         return replace(request, state=state)
 
     def _clear_delay(self) -> None:
@@ -177,37 +182,36 @@ class EmulatedRobot(SimRobot):
 
 
 def scale_dynamics(robot: SimRobot, config: EmulationConfig, seed: int | None) -> SimRobot:
-    """``robot`` rebuilt with scaled velocity (and MiR100 acceleration) limits.
+    """``robot`` rebuilt with the config fields its card names (``EmulationHooks``) scaled.
 
-    Robots are built from frozen configs, so scaling means a new robot from a replaced config;
-    the original is closed. Unit scales return ``robot`` itself.
+    Robots are built from frozen configs, so scaling means a new robot of the same class from a
+    replaced config; the original is closed. Unit scales return ``robot`` itself.
     """
     if config.velocity_scale == 1.0 and config.acceleration_scale == 1.0:
         return robot
-    from robogym_ray.robots.mir100 import Mir100Robot
-    from robogym_ray.robots.ur import URArm
-
-    v, a = config.velocity_scale, config.acceleration_scale
-    if isinstance(robot, Mir100Robot):
-        c = robot.config
-        scaled: SimRobot = Mir100Robot(replace(
-            c, max_linear_velocity=c.max_linear_velocity * v,
-            max_angular_velocity=c.max_angular_velocity * v,
-            max_linear_acceleration=c.max_linear_acceleration * a,
-            max_angular_acceleration=c.max_angular_acceleration * a,
-        ), seed=seed)  # fmt: skip
-    elif isinstance(robot, URArm):
-        c = robot.config
-        scaled = URArm(
-            replace(c, max_velocity_scale_factor=c.max_velocity_scale_factor * v), seed=seed
-        )
-    else:
+    card = _card_of(robot)
+    hooks = card.emulation if card else EmulationHooks()
+    inner_config = getattr(robot, "config", None)
+    if inner_config is None or not (hooks.velocity_fields or hooks.acceleration_fields):
         raise ConfigError(
             f"cannot scale the dynamics of {type(robot).__name__} ({robot.name}); use "
             "velocity_scale=1 and acceleration_scale=1"
         )
+    scaled_fields = {
+        f: getattr(inner_config, f) * config.velocity_scale for f in hooks.velocity_fields
+    }
+    scaled_fields |= {
+        f: getattr(inner_config, f) * config.acceleration_scale for f in hooks.acceleration_fields
+    }
+    scaled: SimRobot = type(robot)(replace(inner_config, **scaled_fields), seed=seed)  # type: ignore[call-arg]
     robot.close()
     return scaled
+
+
+def _card_of(robot: SimRobot) -> RobotCard | None:
+    """The card of ``robot``; None for a robot outside the registry (no hooks: no scaling, no
+    sensor noise)."""
+    return CARDS.get(robot.name)
 
 
 def emulate(robot: SimRobot, config: EmulationConfig, seed: int | None = None) -> EmulatedRobot:

@@ -1,7 +1,8 @@
-"""Robot registry: name -> factory. A new robot is one module plus one line here.
+"""Robot registry: name -> ``RobotCard``. A new robot is its folder plus one line here.
 
-Factories are referenced by import path so that importing the registry does not import
-PyBullet models that are not used.
+Each module in ``CARD_MODULES`` is a robot family's ``card.py`` with a ``CARDS`` dict (name ->
+card). Cards are plain data, so importing the registry imports no PyBullet; the factory a card
+names is imported only by ``make_robot``.
 """
 
 from __future__ import annotations
@@ -11,6 +12,13 @@ from collections.abc import Callable, Mapping
 
 from robogym_ray.errors import UnknownRobotError
 from robogym_ray.robots.base import SimRobot
+from robogym_ray.robots.card import RobotCard
+
+CARD_MODULES: tuple[str, ...] = (
+    "robogym_ray.robots.mir100.card",
+    "robogym_ray.robots.ur.card",
+)
+"""The robot families: one ``card.py`` each."""
 
 RobotFactory = Callable[..., SimRobot]
 """``factory(model: str, scene: str | None, seed: int | None, options: Mapping[str, str])``.
@@ -19,24 +27,33 @@ RobotFactory = Callable[..., SimRobot]
 raises ConfigError on an option or value it does not know.
 """
 
-ROBOTS: dict[str, str] = {
-    "mir100": "robogym_ray.robots.mir100:make_mir100",
-    "ur3": "robogym_ray.robots.ur:make_ur",
-    "ur3e": "robogym_ray.robots.ur:make_ur",
-    "ur5": "robogym_ray.robots.ur:make_ur",
-    "ur5e": "robogym_ray.robots.ur:make_ur",
-    "ur10": "robogym_ray.robots.ur:make_ur",
-    "ur10e": "robogym_ray.robots.ur:make_ur",
-    "ur16e": "robogym_ray.robots.ur:make_ur",
-}
+
+def _load_cards() -> dict[str, RobotCard]:
+    cards: dict[str, RobotCard] = {}
+    for module in CARD_MODULES:
+        for name, card in importlib.import_module(module).CARDS.items():
+            if name in cards or name != card.name:
+                raise ValueError(f"{module}: robot {name!r} is registered twice or misnamed")
+            cards[name] = card
+    return cards
 
 
-OPTION_PARSERS: dict[str, str] = {
-    "robogym_ray.robots.mir100:make_mir100": "robogym_ray.robots.mir100_config:parse_options",
-    "robogym_ray.robots.ur:make_ur": "robogym_ray.robots.ur_config:parse_options",
-}
-"""Factory -> the option parser that factory builds its config with: ``parser(model, scene,
-options)`` raises ConfigError exactly as the factory would, without PyBullet or a server."""
+CARDS: dict[str, RobotCard] = _load_cards()
+"""Every robot by registry name (``mir100``, ``ur3`` ... ``ur16e``)."""
+
+
+def robot_card(name: str) -> RobotCard:
+    """The card of robot ``name``.
+
+    Raises:
+        UnknownRobotError: no robot of that name is registered.
+    """
+    try:
+        return CARDS[name]
+    except KeyError:
+        raise UnknownRobotError(
+            f"unknown robot {name!r}; known robots: {', '.join(sorted(CARDS))}"
+        ) from None
 
 
 def check_options(
@@ -50,17 +67,7 @@ def check_options(
         UnknownRobotError: unknown robot, scene or world.
         ConfigError: an unknown option or a bad option value.
     """
-    module_name, _, attr = OPTION_PARSERS[_factory_path(name)].partition(":")
-    getattr(importlib.import_module(module_name), attr)(name, scene, dict(options or {}))
-
-
-def _factory_path(name: str) -> str:
-    try:
-        return ROBOTS[name]
-    except KeyError:
-        raise UnknownRobotError(
-            f"unknown robot {name!r}; known robots: {', '.join(sorted(ROBOTS))}"
-        ) from None
+    robot_card(name).load_option_parser()(name, scene, dict(options or {}))
 
 
 def make_robot(
@@ -70,7 +77,6 @@ def make_robot(
     seed: int | None = None,
     options: Mapping[str, str] | None = None,
 ) -> SimRobot:
-    """Build the simulated robot ``name`` (see ``ROBOTS``) in ``scene`` (None = its default)."""
-    module_name, _, attr = _factory_path(name).partition(":")
-    factory: RobotFactory = getattr(importlib.import_module(module_name), attr)
+    """Build the simulated robot ``name`` (see ``CARDS``) in ``scene`` (None = its default)."""
+    factory: RobotFactory = robot_card(name).load_factory()
     return factory(model=name, scene=scene, seed=seed, options=dict(options or {}))

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from robogym_ray.config import add_config_args, check_port, config_from_args
 from robogym_ray.errors import ConfigError
 from robogym_ray.robots.emulation import EmulationConfig
-from robogym_ray.robots.registry import ROBOTS
+from robogym_ray.robots.registry import CARDS
 from robogym_ray.robots.server import start_robot_server
 
 log = logging.getLogger(__name__)
@@ -103,8 +103,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     cfg = config_from_args(ServeConfig, args)
-    if cfg.robot not in ROBOTS:
-        print(f"error: unknown robot {cfg.robot!r}; choose from {sorted(ROBOTS)}", file=sys.stderr)
+    if cfg.robot not in CARDS:
+        print(f"error: unknown robot {cfg.robot!r}; choose from {sorted(CARDS)}", file=sys.stderr)
         return 2
     token = cfg.token or os.environ.get("ROBOGYM_RAY_TOKEN") or None
     if not is_loopback(cfg.host) and token is None:

@@ -2,28 +2,39 @@
 
 robo-gym's ServerManager client sends e.g. ``roslaunch ur_robot_server ur_robot_server.launch
 world_name:=empty.world ... ur_model:=ur5`` (with runs of 9 spaces between tokens, so the string
-is only ever taken apart with ``split()``). The launch file names the robot family and
-``ur_model`` the arm; the remaining ``name:=value`` tokens (``world_name`` included) are robot
-options that the robot factories accept as they are, except the few that only steer ROS tooling.
+is only ever taken apart with ``split()``). The launch file names the robot family and a model
+argument (``ur_model``) the model, as the robots' cards say (``RobotCard.launch``); the
+remaining ``name:=value`` tokens (``world_name`` included) are robot options that the robot
+factories accept as they are, except the few that only steer ROS tooling.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 from robogym_ray.errors import ConfigError, UnknownRobotError
+from robogym_ray.robots.card import RobotCard
+from robogym_ray.robots.registry import CARDS
 
-# launch file (the third token) -> robot family
-_LAUNCH_FILES: dict[str, str] = {
-    "sim_robot_server.launch": "mir100",
-    "ur_robot_server.launch": "ur",
-}
-_UR_MODELS = ("ur3", "ur3e", "ur5", "ur5e", "ur10", "ur10e", "ur16e")
+_TOOLING_ARGUMENTS = frozenset({"gui", "rviz_gui", "gazebo_gui", "server_port", "real_robot"})
+"""Launch arguments that only steer ROS tooling: GUI switches, where to listen, real or not."""
 
-# Launch arguments that are not robot options: GUI switches, where to listen, and the model
-# (it becomes the robot name). ``world_name`` stays: the robot factories map it to their scenes.
-NOT_ROBOT_OPTIONS = frozenset(
-    {"gui", "rviz_gui", "gazebo_gui", "server_port", "ur_model", "real_robot"}
+
+def launch_families(cards: Mapping[str, RobotCard] = CARDS) -> dict[str, list[RobotCard]]:
+    """Launch file (the third token of ``cmd``) -> the cards that answer it (the robot family)."""
+    families: dict[str, list[RobotCard]] = {}
+    for card in cards.values():
+        families.setdefault(card.launch.launch_file, []).append(card)
+    return families
+
+
+_FAMILIES = launch_families()
+
+# Launch arguments that are not robot options: the tooling ones and the model arguments (the
+# model becomes the robot name). ``world_name`` stays: the robot factories map it to their scenes.
+NOT_ROBOT_OPTIONS = _TOOLING_ARGUMENTS | frozenset(
+    c.launch.model_argument for c in CARDS.values() if c.launch.model_argument
 )
 
 
@@ -59,21 +70,29 @@ def parse_launch_cmd(cmd: str) -> LaunchSpec:
     tokens = cmd.split()
     if len(tokens) < 3 or tokens[0] != "roslaunch":
         raise ConfigError(f"cmd {cmd!r} is not 'roslaunch <package> <launch file> name:=value ...'")
-    family = _LAUNCH_FILES.get(tokens[2])
+    family = _FAMILIES.get(tokens[2])
     if family is None:
         raise UnknownRobotError(
             f"no simulated robot for launch file {tokens[2]!r} (package {tokens[1]!r}); "
-            f"known launch files: {', '.join(sorted(_LAUNCH_FILES))}"
+            f"known launch files: {', '.join(sorted(_FAMILIES))}"
         )
     args = parse_launch_args(tokens[3:])
-    if family == "ur":
-        robot = args.get("ur_model", "")
-        if robot not in _UR_MODELS:
-            raise UnknownRobotError(
-                f"ur_model:={robot or '<missing>'} is not a UR model we simulate; "
-                f"known: {', '.join(_UR_MODELS)}"
-            )
-    else:
-        robot = family
+    robot = _pick_model(family, args)
     options = {k: v for k, v in args.items() if k not in NOT_ROBOT_OPTIONS}
     return LaunchSpec(robot=robot, options=options)
+
+
+def _pick_model(family: list[RobotCard], args: Mapping[str, str]) -> str:
+    """The card of ``family`` whose model argument ``args`` names (or the family's only card)."""
+    argument = family[0].launch.model_argument
+    if argument is None:
+        return family[0].name
+    value = args.get(argument, "")
+    for card in family:
+        if card.launch.model_value == value:
+            return card.name
+    known = ", ".join(str(c.launch.model_value) for c in family)
+    raise UnknownRobotError(
+        f"{argument}:={value or '<missing>'} is not a model we simulate for "
+        f"{family[0].launch.launch_file}; known: {known}"
+    )

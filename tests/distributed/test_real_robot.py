@@ -18,7 +18,12 @@ from typing import Any
 import pytest
 
 from robogym_ray.realrobot.robot import RobotPausedError
-from robogym_ray.realrobot.safety import SafetyConfig, SafetyFilter, UnsafeCommandError
+from robogym_ray.realrobot.safety import (
+    SafetyConfig,
+    SafetyFilter,
+    UnsafeCommandError,
+    safety_for_robot,
+)
 
 ray = pytest.importorskip("ray")
 
@@ -85,7 +90,7 @@ def test_an_idle_robot_is_probed_and_pauses_when_its_server_dies() -> None:
     robot = RealRobot(
         "idle",
         server.address,
-        SafetyConfig.mir100(),
+        safety_for_robot("mir100"),
         deadlines=Deadlines.fast(),
         probe_interval_s=0.1,
     )
@@ -107,7 +112,7 @@ def test_an_idle_robot_is_probed_and_pauses_when_its_server_dies() -> None:
         robot.close()
         server.stop(grace=0)
     with pytest.raises(ValueError, match="probe_interval_s"):
-        RealRobot("x", server.address, SafetyConfig.mir100(), check=False, probe_interval_s=-1)
+        RealRobot("x", server.address, safety_for_robot("mir100"), check=False, probe_interval_s=-1)
 
 
 @pytest.mark.ray
@@ -121,7 +126,9 @@ def test_paused_robot_stays_paused_until_resumed_and_is_never_restarted(
     proc, address = hardware
     supervisor = start_supervisor(SupervisorConfig(probe_interval_s=0.2), name="test-real-sup")
     try:
-        status = _remote(supervisor.join_real_robot, "mir-real", address, SafetyConfig.mir100())
+        status = _remote(
+            supervisor.join_real_robot, "mir-real", address, safety_for_robot("mir100")
+        )
         assert not status["paused"]
         robot = ray.get_actor("mir-real", namespace="robogym-ray")
         assert _remote(robot.send_action, [3.0, -9.0]) == [1.0, -1.5]  # clipped, then sent
@@ -153,7 +160,7 @@ def test_server_error_pauses_and_operator_resumes_from_the_cli(
     from robogym_ray.distributed.remote import start_real_robot
 
     proc, address = hardware
-    robot = start_real_robot("mir-cli", address, SafetyConfig.mir100())
+    robot = start_real_robot("mir-cli", address, safety_for_robot("mir100"))
     _stop(proc)  # the hardware's driver goes away
     with pytest.raises(Exception, match="UNAVAILABLE"):
         _remote(robot.get_state)

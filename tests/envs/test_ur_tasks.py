@@ -10,7 +10,7 @@ import robogym_ray  # noqa: F401
 from robogym_ray.envs.ur_avoidance import RAAD_SEGMENTS, RAAD_START, raad_reference_trajectory
 from robogym_ray.envs.ur_common import KEYS, normalize_joints, to_ros
 from robogym_ray.envs.ur_tasks import PAPER_RADIUS_SCALE, sample_target
-from robogym_ray.robots.ur_model import UR_MODELS
+from robogym_ray.robots.ur.geometry import UR_MODELS
 
 
 def test_key_sets_match_the_spec():

@@ -10,9 +10,9 @@ import pytest
 
 from robogym_ray.errors import ConfigError, InvalidActionError, InvalidStateError, UnknownRobotError
 from robogym_ray.robots.base import StateRequest
-from robogym_ray.robots.mir100 import Mir100Config, Mir100Robot, make_mir100
-from robogym_ray.robots.mir100_lasers import BACK, FRONT
-from robogym_ray.robots.mir100_scenes import OBSTACLES
+from robogym_ray.robots.mir100.lasers import BACK, FRONT
+from robogym_ray.robots.mir100.model import Mir100Config, Mir100Robot, make_mir100
+from robogym_ray.robots.mir100.scenes import OBSTACLES
 from robogym_ray.robots.registry import make_robot
 
 Pose = Sequence[float]

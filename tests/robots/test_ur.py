@@ -10,10 +10,10 @@ from robogym_ray.errors import InvalidActionError, InvalidStateError
 from robogym_ray.robots.base import StateRequest
 from robogym_ray.robots.command_handler import CommandHandler
 from robogym_ray.robots.registry import make_robot
-from robogym_ray.robots.ur import URArm
-from robogym_ray.robots.ur_controller import MIN_DURATION
-from robogym_ray.robots.ur_model import POSITION_LIMITS, ROS_FROM_ENV, UR_MODELS
-from robogym_ray.robots.ur_state import ALL_KEYS, POSITION_KEYS, RS_MODE_KEYS
+from robogym_ray.robots.ur.controller import MIN_DURATION
+from robogym_ray.robots.ur.geometry import POSITION_LIMITS, ROS_FROM_ENV, UR_MODELS
+from robogym_ray.robots.ur.model import URArm
+from robogym_ray.robots.ur.state import ALL_KEYS, POSITION_KEYS, RS_MODE_KEYS
 
 EE_RESET = np.array([0.0, -2.5, 1.5, -1.5, -1.4, 0.0])
 ROS = list(ROS_FROM_ENV)

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from robogym_ray.errors import ConfigError, UnknownRobotError
-from robogym_ray.robots.registry import ROBOTS, make_robot
-from robogym_ray.robots.ur_config import URConfig, parse_options
-from robogym_ray.robots.ur_model import UR_MODELS, forward_kinematics
+from robogym_ray.robots.registry import CARDS, make_robot
+from robogym_ray.robots.ur.config import URConfig, parse_options
+from robogym_ray.robots.ur.geometry import UR_MODELS, forward_kinematics
 
 
 def _tokens(cmd: str) -> dict[str, str]:
@@ -108,7 +108,7 @@ def test_unknown_model():
 
 @pytest.mark.parametrize("model", sorted(UR_MODELS))
 def test_every_registered_model_builds_and_matches_numpy_fk(model):
-    assert ROBOTS[model] == "robogym_ray.robots.ur:make_ur"
+    assert CARDS[model].factory == "robogym_ray.robots.ur.model:make_ur"
     robot = make_robot(model, options={"rs_mode": "1moving2points"})
     try:
         groups = robot.read_sensors()

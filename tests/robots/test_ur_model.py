@@ -7,7 +7,7 @@ import pybullet as p
 import pytest
 
 from robogym_ray.robots.sim import PyBulletWorld
-from robogym_ray.robots.ur_model import (
+from robogym_ray.robots.ur.geometry import (
     BASE_LINK_HEIGHT,
     JOINT_NAMES,
     POSITION_LIMITS,

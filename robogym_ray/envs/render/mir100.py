@@ -12,9 +12,9 @@ from collections.abc import Sequence
 import numpy as np
 
 from robogym_ray.envs.render.canvas import Canvas, RenderConfig, TopDownCamera, TopDownProjection
-from robogym_ray.robots.mir100 import FOOTPRINT, FOOTPRINT_OFFSET
-from robogym_ray.robots.mir100_lasers import BACK, FRONT
-from robogym_ray.robots.mir100_scenes import CUBE_SIZE, LAB_ORIGIN, LAB_WALLS
+from robogym_ray.robots.mir100.lasers import BACK, FRONT
+from robogym_ray.robots.mir100.model import FOOTPRINT, FOOTPRINT_OFFSET
+from robogym_ray.robots.mir100.scenes import CUBE_SIZE, LAB_ORIGIN, LAB_WALLS
 
 WALL, CUBE, ROBOT, HEADING = (90, 90, 100), (70, 110, 200), (60, 60, 60), (250, 200, 40)
 TARGET, LASER, PATH = (40, 170, 60), (220, 40, 40), (120, 120, 220)

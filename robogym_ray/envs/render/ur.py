@@ -14,7 +14,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from robogym_ray.envs.render.canvas import Canvas, PerspectiveProjection, RenderConfig, ViewCamera
-from robogym_ray.robots.ur_model import BASE_LINK_HEIGHT, UR_MODELS, forward_kinematics
+from robogym_ray.robots.ur.geometry import BASE_LINK_HEIGHT, UR_MODELS, forward_kinematics
 
 LINK, JOINT, TOOL = (110, 130, 160), (50, 55, 70), (240, 150, 30)
 TARGET, OBJECT, GRID, COLLIDED = (40, 170, 60), (210, 60, 60), (200, 200, 195), (220, 40, 40)

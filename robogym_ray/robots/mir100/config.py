@@ -8,12 +8,13 @@ from dataclasses import dataclass
 
 from robogym_ray.errors import ConfigError, UnknownRobotError
 from robogym_ray.robots.command_handler import CommandHandlerConfig
-from robogym_ray.robots.mir100_drive import DriveLimits
-from robogym_ray.robots.mir100_scenes import check_scene, scene_for_world
+from robogym_ray.robots.mir100.card import ACCELERATION, VELOCITY
+from robogym_ray.robots.mir100.drive import DriveLimits
+from robogym_ray.robots.mir100.scenes import check_scene, scene_for_world
 from robogym_ray.robots.validation import parse_option_number, preview
 
 LASER_CASTERS = ("boxes", "bullet")
-"""Ray casters ``Mir100Config.laser_caster`` accepts (see ``mir100_lasers``)."""
+"""Ray casters ``Mir100Config.laser_caster`` accepts (see ``lasers``)."""
 
 
 @dataclass(frozen=True)
@@ -23,13 +24,13 @@ class Mir100Config:
     scene: str = "empty"
     """``empty`` (ground + target marker) or ``lab_6x8`` (walls + 3 cubes). The default is the
     one of robo-gym's ``sim_robot_server.launch`` (``empty_world_target.world``)."""
-    max_linear_velocity: float = 1.0
+    max_linear_velocity: float = VELOCITY[0]
     """Diff-drive controller limit on |v| (m/s)."""
-    max_angular_velocity: float = 1.5
+    max_angular_velocity: float = VELOCITY[1]
     """Diff-drive controller limit on |omega| (rad/s)."""
-    max_linear_acceleration: float = 2.0
+    max_linear_acceleration: float = ACCELERATION[0]
     """Diff-drive controller limit on |dv/dt| (m/s^2)."""
-    max_angular_acceleration: float = 2.5
+    max_angular_acceleration: float = ACCELERATION[1]
     """Diff-drive controller limit on |domega/dt| (rad/s^2)."""
     laser_noise_sigma: float = 0.0
     """Std. dev. of Gaussian laser range noise (m); 0.0 = clean sim (Gazebo uses 0.01)."""

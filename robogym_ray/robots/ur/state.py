@@ -21,7 +21,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from robogym_ray.robots.base import StateSnapshot
-from robogym_ray.robots.ur_model import ROS_FROM_ENV
+from robogym_ray.robots.ur.geometry import ROS_FROM_ENV
 
 JOINT_KEYS: tuple[str, ...] = ("base", "shoulder", "elbow", "wrist_1", "wrist_2", "wrist_3")
 """state_dict joint name stems in env order (``base`` = shoulder_pan, ``shoulder`` = lift)."""

@@ -8,9 +8,12 @@ the 1 kg cubes can be pushed, here a cube stops the robot like a wall does.
 from __future__ import annotations
 
 from collections.abc import Mapping
+from typing import TYPE_CHECKING
 
 from robogym_ray.errors import UnknownRobotError
-from robogym_ray.robots.sim import PyBulletWorld
+
+if TYPE_CHECKING:  # the option parser reads the scenes without PyBullet
+    from robogym_ray.robots.sim import PyBulletWorld
 
 OBSTACLES = ("obstacle_0", "obstacle_1", "obstacle_2")
 """Body names of the cubes SetState places (state[1021:1030])."""

@@ -7,8 +7,8 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
 from robogym_ray.errors import ConfigError, UnknownRobotError
-from robogym_ray.robots.ur_model import UR_MODELS
-from robogym_ray.robots.ur_state import RS_MODES
+from robogym_ray.robots.ur.geometry import UR_MODELS
+from robogym_ray.robots.ur.state import RS_MODES
 from robogym_ray.robots.validation import check_range, parse_option_number
 
 

@@ -12,18 +12,18 @@ index  meaning             unit   accepted
 robo-gym's bridge does not clip actions (the ROS diff-drive controller does), so out-of-range
 values are accepted and clipped here too; wrong length, NaN and inf are refused.
 
-State: the 1030 values of spec c.1, see ``mir100_state``. SetState takes the target, teleports
+State: the 1030 values of spec c.1, see ``state``. SetState takes the target, teleports
 the base (zero twist) and, in ``lab_6x8``, the three cubes.
 
 Model (differences from Gazebo, all deliberate, for speed and determinism):
 
 * The base is **kinematic**: the twist follows the set-point within the acceleration limits and
-  the pose follows the twist (``mir100_drive``); the base body is teleported every substep.
+  the pose follows the twist (``drive``); the base body is teleported every substep.
 * Contacts are checked after every substep with PyBullet's closest-point query. A substep that
   would bring the base into (deeper) contact is undone and the twist zeroed: the robot stops at
   the obstacle instead of pushing it. **Cubes are never pushed** (in Gazebo they can be).
 * Nothing is physics-stepped, nothing sleeps; sim time advances only through ``advance(dt)``.
-* Lasers: 1,012 retained beams in one ray batch (``mir100_lasers``), clean unless
+* Lasers: 1,012 retained beams in one ray batch (``lasers``), clean unless
   ``laser_noise_sigma`` > 0 (Gazebo uses 0.01 m).
 """
 
@@ -36,20 +36,21 @@ import numpy as np
 
 from robogym_ray.errors import InvalidActionError
 from robogym_ray.robots.base import SimRobot, StateRequest, StateSnapshot
-from robogym_ray.robots.mir100_config import Mir100Config, parse_options
-from robogym_ray.robots.mir100_drive import BaseState, clip, integrate, wrap_angle
-from robogym_ray.robots.mir100_lasers import BACK, FRONT, BoxCaster, BulletCaster, Caster, LaserPair
-from robogym_ray.robots.mir100_scenes import (
+from robogym_ray.robots.mir100.card import CARD
+from robogym_ray.robots.mir100.config import Mir100Config, parse_options
+from robogym_ray.robots.mir100.drive import BaseState, clip, integrate, wrap_angle
+from robogym_ray.robots.mir100.lasers import BACK, FRONT, BoxCaster, BulletCaster, Caster, LaserPair
+from robogym_ray.robots.mir100.scenes import (
     CUBE_SIZE,
     OBSTACLES,
     TARGET_MARKER_Z,
     build_scene,
 )
-from robogym_ray.robots.mir100_state import GROUPS, compose_state, parse_set_state
+from robogym_ray.robots.mir100.state import GROUPS, compose_state, parse_set_state
 from robogym_ray.robots.sim import PyBulletWorld
 
-FOOTPRINT = (0.9, 0.58, 0.3)
-"""Base collision box (x, y, z size in m), as the URDF's base box."""
+FOOTPRINT: tuple[float, float, float] = CARD.geometry.footprint  # type: ignore[assignment]
+"""Base collision box (x, y, z size in m), as the URDF's base box (the card's footprint)."""
 FOOTPRINT_OFFSET = (0.037646, 0.0, 0.20)
 """Box centre relative to the pose point (drive-axle centre on the floor), robot frame (m)."""
 # The base belongs to no group the rays or the broadphase look at (mask 0), so the scanners,

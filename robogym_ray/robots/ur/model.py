@@ -8,13 +8,13 @@ SendAction                6 floats, ROS order [elbow, shoulder_lift, shoulder_pa
                           |value| <= the joint's position limit (+1e-4 for float32 rounding)
 SetState ``state_dict``   the six ``*_joint_position`` goals (else ``state[6:12]``, ROS order);
                           every other known key is ignored, unknown keys are an error
-SetState params           ``object_<i>_function`` + ``object_<i>_*`` floats (``ur_objects``)
-GetState                  the rs_mode's exact key set + flat list (``ur_state``)
+SetState params           ``object_<i>_function`` + ``object_<i>_*`` floats (``objects``)
+GetState                  the rs_mode's exact key set + flat list (``state``)
 ========================  ==================================================================
 
 Differences from the ROS/Gazebo server, all deliberate (sim time is free, Gazebo is not here):
 
-* The controller is kinematic (``ur_controller``): positions follow the trajectory exactly, joint
+* The controller is kinematic (``controller``): positions follow the trajectory exactly, joint
   velocities are its derivative, targets beyond a joint limit are clipped to the limit.
 * SetState *places* the arm at the goal (velocity 0) instead of driving it there; the result is
   the same state the ROS server waits for, without the 0.03 rad residual. Objects restart at their
@@ -36,9 +36,9 @@ from robogym_ray.errors import InvalidActionError, InvalidStateError
 from robogym_ray.robots.base import SimRobot, StateRequest, StateSnapshot
 from robogym_ray.robots.command_handler import CommandHandlerConfig
 from robogym_ray.robots.sim import PyBulletWorld
-from robogym_ray.robots.ur_config import SCENES, URConfig, parse_options
-from robogym_ray.robots.ur_controller import JointTrajectoryController
-from robogym_ray.robots.ur_model import (
+from robogym_ray.robots.ur.config import SCENES, URConfig, parse_options
+from robogym_ray.robots.ur.controller import JointTrajectoryController
+from robogym_ray.robots.ur.geometry import (
     BASE_LINK_HEIGHT,
     JOINT_NAMES,
     LINK_NAMES,
@@ -47,8 +47,8 @@ from robogym_ray.robots.ur_model import (
     UR_MODELS,
     urdf_path,
 )
-from robogym_ray.robots.ur_objects import ObjectTrajectory, build_trajectory, parked
-from robogym_ray.robots.ur_state import (
+from robogym_ray.robots.ur.objects import ObjectTrajectory, build_trajectory, parked
+from robogym_ray.robots.ur.state import (
     ALL_KEYS,
     N_OBJECTS,
     POSITION_KEYS,
