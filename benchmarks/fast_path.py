@@ -12,7 +12,12 @@ For each of the paper's envs, in one process on one core, rounds alternate betwe
   beside Gymnasium's ``SyncVectorEnv`` of 8 envs on the gRPC path (each with an embedded robot
   server, as every env was before in-process simulation) and of 8 default (in-process) envs.
 
-The best round of each is reported (env steps per second).
+The best round of each is reported (env steps per second). Beside it, ``core share``: the
+part of the bench's time spent inside the robot cores' SendActionGetState and SetState (timed
+by wrapping ``RobotServerCore``'s methods in this process) - the simulation under exactly the
+bench's workload (its scene, its actions, its resets); 1 - core share is the overhead of
+everything else (env, task, policy, n-step, batching). The ``core`` row is a standalone core
+with a constant action and no resets, as ``benchmarks/envs.py`` measures it.
 """
 
 from __future__ import annotations
@@ -31,8 +36,26 @@ import robogym_ray  # noqa: F401 - registers the ids
 from robogym_ray.envs.servers import EmbeddedServerProvider
 from robogym_ray.experience.rollout import RolloutWorker, make_gym_env
 from robogym_ray.learner.config import D4PGConfig
+from robogym_ray.robots.server import RobotServerCore
 
 KS = (1, 2, 4, 8, 16)
+CORE_SECONDS = [0.0]
+"""Seconds spent inside robot cores since the last reset of this counter."""
+
+
+def time_cores() -> None:
+    """Count the time of every core call of this process in ``CORE_SECONDS``."""
+    for name in ("send_action_get_state", "set_state"):
+        method = getattr(RobotServerCore, name)
+
+        def timed(self, *args, _method=method):  # type: ignore[no-untyped-def]
+            start = time.perf_counter()
+            try:
+                return _method(self, *args)
+            finally:
+                CORE_SECONDS[0] += time.perf_counter() - start
+
+        setattr(RobotServerCore, name, timed)
 
 
 def worker_bench(env_id: str, k: int):  # type: ignore[no-untyped-def]
@@ -71,22 +94,27 @@ def measure(env_id: str, steps: int, rounds: int) -> dict[str, float]:
         env_id, vectorization_mode="sync", provider=EmbeddedServerProvider()
     )
     best = dict.fromkeys(benches, 0.0)
+    share = dict.fromkeys(benches, 0.0)
     for _ in range(rounds):
         for name, run in benches.items():
             n = steps if not name.startswith(("make_vec", "Sync")) else steps // 8 * 8
-            best[name] = max(best[name], n / run(n))
-    return best
+            CORE_SECONDS[0] = 0.0
+            seconds = run(n)
+            if n / seconds > best[name]:
+                best[name], share[name] = n / seconds, min(1.0, CORE_SECONDS[0] / seconds)
+    return {**best, **{f"{name} share": value for name, value in share.items()}}
 
 
 def report(results: dict[str, dict[str, float]], args: argparse.Namespace) -> str:
-    names = list(next(iter(results.values())))
-    head = "| | " + " | ".join(f"`{e.split('/')[1]}`" for e in results) + " |"
+    names = [n for n in next(iter(results.values())) if not n.endswith(" share")]
+    head = "| | " + " | ".join(
+        f"`{e.split('/')[1]}` steps/s | x core | core share" for e in results
+    ) + " |"
     rows = []
     for name in names:
         cells = []
         for r in results.values():
-            ratio = r[name] / r["core"]
-            cells.append(f"{r[name]:.0f} ({ratio:.2f}x core)")
+            cells.append(f"{r[name]:.0f} | {r[name] / r['core']:.2f} | {r[name + ' share']:.2f}")
         rows.append(f"| {name} | " + " | ".join(cells) + " |")
     vec = [
         f"| `{e.split('/')[1]}` | {r['make_vec 8'] / r['SyncVectorEnv 8 (gRPC)']:.2f} | "
@@ -101,7 +129,7 @@ def report(results: dict[str, dict[str, float]], args: argparse.Namespace) -> st
         f"Command: `nice python benchmarks/fast_path.py --steps {args.steps} --rounds "
         f"{args.rounds}` (env steps/s, best of the alternating rounds, one process, one core).",
         "",
-        head, "|---|" + "---|" * len(results), *rows,
+        head, "|---|" + "---|---|---|" * len(results), *rows,
         "",
         "| env | make_vec(8) / SyncVectorEnv(8, gRPC envs) | make_vec(8) / SyncVectorEnv(8, "
         "in-process envs) |",
@@ -113,6 +141,7 @@ def report(results: dict[str, dict[str, float]], args: argparse.Namespace) -> st
 
 def main() -> None:
     torch.set_num_threads(1)  # one core, as in a Ray actor (Ray sets OMP_NUM_THREADS=1)
+    time_cores()
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=1000, help="env steps per round and bench")
     parser.add_argument("--rounds", type=int, default=3)
