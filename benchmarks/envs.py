@@ -145,9 +145,16 @@ def report(results: dict[str, dict[str, float]], args: argparse.Namespace) -> st
     )
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--steps", type=int, default=2000, help="steps per round and bench")
+def run_paper_envs(
+    doc: str | None,
+    measure: Callable[[str, int, int], dict[str, float]],
+    report: Callable[[dict[str, dict[str, float]], argparse.Namespace], str],
+    steps: int,
+) -> None:
+    """The command line of a per-env benchmark: ``--steps``, ``--rounds``, ``--write FILE``;
+    ``measure`` each paper env, print the ``report`` (and write it)."""
+    parser = argparse.ArgumentParser(description=(doc or "").splitlines()[0])
+    parser.add_argument("--steps", type=int, default=steps, help="steps per round and bench")
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--write", type=Path, default=None, help="markdown file to write")
     args = parser.parse_args()
@@ -160,4 +167,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_paper_envs(__doc__, measure, report, steps=2000)

@@ -26,11 +26,10 @@ import argparse
 import datetime
 import sys
 import time
-from pathlib import Path
 
 import gymnasium as gym
 import torch
-from envs import PAPER_ENVS, machine, server_benches
+from envs import machine, run_paper_envs, server_benches
 
 import robogym_ray  # noqa: F401 - registers the ids
 from robogym_ray.envs.servers import EmbeddedServerProvider
@@ -139,21 +138,7 @@ def report(results: dict[str, dict[str, float]], args: argparse.Namespace) -> st
     ])  # fmt: skip
 
 
-def main() -> None:
+if __name__ == "__main__":
     torch.set_num_threads(1)  # one core, as in a Ray actor (Ray sets OMP_NUM_THREADS=1)
     time_cores()
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--steps", type=int, default=1000, help="env steps per round and bench")
-    parser.add_argument("--rounds", type=int, default=3)
-    parser.add_argument("--write", type=Path, default=None, help="markdown file to write")
-    args = parser.parse_args()
-    results = {env_id: measure(env_id, args.steps, args.rounds) for env_id in PAPER_ENVS}
-    text = report(results, args)
-    print(text)
-    if args.write:
-        args.write.parent.mkdir(parents=True, exist_ok=True)
-        args.write.write_text(text)
-
-
-if __name__ == "__main__":
-    main()
+    run_paper_envs(__doc__, measure, report, steps=1000)
