@@ -106,9 +106,11 @@ def measure(env_id: str, steps: int, rounds: int) -> dict[str, float]:
 
 def report(results: dict[str, dict[str, float]], args: argparse.Namespace) -> str:
     names = [n for n in next(iter(results.values())) if not n.endswith(" share")]
-    head = "| | " + " | ".join(
-        f"`{e.split('/')[1]}` steps/s | x core | core share" for e in results
-    ) + " |"
+    head = (
+        "| | "
+        + " | ".join(f"`{e.split('/')[1]}` steps/s | x core | core share" for e in results)
+        + " |"
+    )
     rows = []
     for name in names:
         cells = []
