@@ -9,8 +9,8 @@ import numpy as np
 
 from robogym_ray.protocol import robot_server_pb2 as pb
 from robogym_ray.protocol import server_manager_pb2 as sm
+from robogym_ray.robots.objects import FUNCTIONS
 from robogym_ray.robots.registry import check_options
-from robogym_ray.robots.ur.objects import FUNCTIONS
 from robogym_ray.robots.ur.state import RS_MODE_KEYS
 from robogym_ray.supervision.launch import parse_launch_cmd
 

@@ -10,15 +10,9 @@ from typing import Any, ClassVar
 import numpy as np
 
 from robogym_ray.envs.base import StepInfo
+from robogym_ray.envs.frames import box, frame_xyz, in_frame, spherical
 from robogym_ray.envs.outcomes import COLLISION, SUCCESS
-from robogym_ray.envs.ur_common import (
-    URTask,
-    box,
-    frame_xyz,
-    in_frame,
-    normalize_joints,
-    spherical,
-)
+from robogym_ray.envs.ur_common import URTask, normalize_joints
 from robogym_ray.protocol import robot_server_pb2 as pb
 from robogym_ray.protocol.client import RobotServerClient
 

@@ -12,9 +12,9 @@ from typing import Any, ClassVar
 
 import numpy as np
 from gymnasium import spaces
-from scipy.spatial.transform import Rotation
 
 from robogym_ray.envs.base import RobotServerEnv
+from robogym_ray.envs.frames import frame_xyz
 from robogym_ray.envs.render import RenderConfig
 from robogym_ray.envs.render.ur import draw_ur
 from robogym_ray.errors import ConfigError, InvalidStateError
@@ -45,29 +45,6 @@ def normalize_joints(q: np.ndarray) -> np.ndarray:
 def to_ros(q_env: np.ndarray) -> np.ndarray:
     """Env -> ROS order ``[elbow, shoulder_lift, shoulder_pan, wrist_1, wrist_2, wrist_3]``."""
     return np.asarray(q_env)[list(ROS_FROM_ENV)]
-
-
-def frame_xyz(sd: Mapping[str, float], prefix: str) -> np.ndarray:
-    return np.array([sd[f"{prefix}_to_ref_translation_{a}"] for a in "xyz"], dtype=np.float64)
-
-
-def frame_rotation(sd: Mapping[str, float], prefix: str) -> Rotation:
-    quat = np.array([sd[f"{prefix}_to_ref_rotation_{a}"] for a in "xyzw"], dtype=np.float64)
-    if not np.all(np.isfinite(quat)) or np.linalg.norm(quat) < 1e-6:
-        raise InvalidStateError(f"{prefix} rotation quaternion {quat.tolist()} is not valid")
-    return Rotation.from_quat(quat)
-
-
-def spherical(v: np.ndarray) -> np.ndarray:
-    """``[r, theta = arccos(z / r), phi = atan2(y, x)]`` (theta = 0 at r = 0)."""
-    r = float(np.linalg.norm(v))
-    theta = float(np.arccos(np.clip(v[2] / r, -1.0, 1.0))) if r > 0 else 0.0
-    return np.array([r, theta, np.arctan2(v[1], v[0])])
-
-
-def in_frame(sd: Mapping[str, float], point: np.ndarray, prefix: str) -> np.ndarray:
-    """``point`` (reference frame) expressed in frame ``prefix`` (ee, forearm)."""
-    return frame_rotation(sd, prefix).inv().apply(point - frame_xyz(sd, prefix))
 
 
 class URTask(RobotServerEnv):
@@ -211,7 +188,3 @@ class URTask(RobotServerEnv):
 def joint_obs_bounds(n_norm: int, n_vel: int) -> tuple[list[float], list[float]]:
     """Bounds of ``n_norm`` normalised positions (+-1.1) then ``n_vel`` velocities (free)."""
     return [-1.1] * n_norm + [-np.inf] * n_vel, [1.1] * n_norm + [np.inf] * n_vel
-
-
-def box(low: Sequence[float], high: Sequence[float]) -> spaces.Box:
-    return spaces.Box(np.array(low, np.float32), np.array(high, np.float32), dtype=np.float32)

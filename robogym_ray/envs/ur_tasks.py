@@ -11,17 +11,9 @@ from typing import Any, ClassVar
 import numpy as np
 
 from robogym_ray.envs.base import StepInfo
+from robogym_ray.envs.frames import box, frame_xyz, in_frame, spherical
 from robogym_ray.envs.outcomes import COLLISION, SUCCESS
-from robogym_ray.envs.ur_common import (
-    JOINT_MAX,
-    URTask,
-    box,
-    frame_xyz,
-    in_frame,
-    joint_obs_bounds,
-    normalize_joints,
-    spherical,
-)
+from robogym_ray.envs.ur_common import JOINT_MAX, URTask, joint_obs_bounds, normalize_joints
 from robogym_ray.errors import ConfigError
 from robogym_ray.protocol import robot_server_pb2 as pb
 from robogym_ray.protocol.client import RobotServerClient

@@ -15,13 +15,13 @@ Writing a card for a new robot (an example: ``robots/ur/card.py``, ``robots/mir1
 
     CARD = RobotCard(
         name="panda", family="panda",
-        limits=Limits(names=(...7 joints...), position=(...), velocity=(...), acceleration=(...)),
+        limits=Limits(names=(...7 joints...), lower=(...), upper=(...), velocity=(...)),
         safety=SafetyLimits(low=(...), high=(...)),           # None: no real robot behind it
         emulation=EmulationHooks(velocity_fields=("max_velocity_scale_factor",)),
         geometry=Geometry(dh=(...)),                          # or footprint=(l, w, h) for a base
         launch=LaunchFamily("panda_robot_server.launch"),     # or with model_argument="..."
         state=StateLayout(length=..., slots=(StateSlot("joints", 0, 7), ...), keys=(...)),
-        factory="robogym_ray.robots.panda.model:make_panda",
+        factory="robogym_ray.robots.panda.robot:make_panda",
         option_parser="robogym_ray.robots.panda.config:parse_options",
     )
     CARDS = {CARD.name: CARD}
@@ -50,17 +50,40 @@ class Limits:
     velocity: tuple[float, ...]
     """Largest |velocity| per element (rad/s, or m/s for a base's linear element)."""
     position: tuple[float, ...] | None = None
-    """Largest |position| per joint (rad; limits are symmetric); None for a base."""
+    """Largest |position| per joint (rad) when the limits are symmetric; None for a base or
+    when ``lower`` / ``upper`` give them."""
     acceleration: tuple[float, ...] | None = None
     """Largest |acceleration| per element (rad/s^2, m/s^2); None when the controller has none
     (the UR's kinematic trajectory controller)."""
+    lower: tuple[float, ...] | None = None
+    """Lowest position per joint (rad), for asymmetric limits (with ``upper``, not ``position``)."""
+    upper: tuple[float, ...] | None = None
+    """Highest position per joint (rad), for asymmetric limits (with ``lower``)."""
 
     def __post_init__(self) -> None:
         n = len(self.names)
-        for name in ("velocity", "position", "acceleration"):
+        for name in ("velocity", "position", "acceleration", "lower", "upper"):
             value = getattr(self, name)
             if value is not None and len(value) != n:
                 raise ValueError(f"Limits.{name} has {len(value)} entries for {n} names")
+        if (self.lower is None) != (self.upper is None):
+            raise ValueError("Limits.lower and Limits.upper come together")
+        if self.lower is not None and self.position is not None:
+            raise ValueError("Limits: give position (symmetric) or lower/upper, not both")
+        if self.lower is not None and self.upper is not None:
+            pairs = zip(self.names, self.lower, self.upper, strict=True)
+            bad = [name for name, lo, hi in pairs if not lo <= hi]
+            if bad:
+                raise ValueError(f"Limits: lower > upper for {bad}")
+
+    @property
+    def position_range(self) -> tuple[tuple[float, ...], tuple[float, ...]] | None:
+        """``(lower, upper)`` per joint (rad), symmetric or not; None without position limits."""
+        if self.lower is not None and self.upper is not None:
+            return self.lower, self.upper
+        if self.position is not None:
+            return tuple(-v for v in self.position), self.position
+        return None
 
 
 @dataclass(frozen=True)
@@ -202,7 +225,7 @@ class RobotCard:
     def __post_init__(self) -> None:
         if self.kind not in ("arm", "base"):
             raise ValueError(f"RobotCard {self.name}: kind {self.kind!r}, expected arm or base")
-        if self.kind == "arm" and self.limits.position is None:
+        if self.kind == "arm" and self.limits.position_range is None:
             raise ValueError(f"RobotCard {self.name}: an arm needs position limits")
         for path in (self.factory, self.option_parser):
             if path.count(":") != 1:

@@ -12,7 +12,7 @@ from robogym_ray.envs import REAL_ENV_IDS
 from robogym_ray.envs.registration import env_robot
 from robogym_ray.errors import ConfigError, UnknownRobotError
 from robogym_ray.realrobot.safety import SafetyConfig, safety_for, safety_for_robot
-from robogym_ray.robots.card import LaunchFamily, RobotCard
+from robogym_ray.robots.card import LaunchFamily, Limits, RobotCard
 from robogym_ray.robots.registry import CARDS, make_robot, robot_card
 from robogym_ray.supervision.launch import launch_families, parse_launch_cmd
 
@@ -43,6 +43,21 @@ def test_every_card_is_complete_and_named_by_its_registry_key() -> None:
         assert (card.geometry.footprint is not None) == (card.kind == "base")
 
 
+def test_limits_are_symmetric_or_lower_upper() -> None:
+    names = ("a", "b")
+    symmetric = Limits(names=names, velocity=(1.0, 1.0), position=(1.0, 2.0))
+    assert symmetric.position_range == ((-1.0, -2.0), (1.0, 2.0))
+    skewed = Limits(names=names, velocity=(1.0, 1.0), lower=(-1.0, 0.0), upper=(0.5, 3.0))
+    assert skewed.position_range == ((-1.0, 0.0), (0.5, 3.0))
+    assert Limits(names=names, velocity=(1.0, 1.0)).position_range is None
+    with pytest.raises(ValueError, match="come together"):
+        Limits(names=names, velocity=(1.0, 1.0), lower=(-1.0, 0.0))
+    with pytest.raises(ValueError, match="not both"):
+        Limits(names=names, velocity=(1.0, 1.0), position=(1.0, 1.0), lower=(0, 0), upper=(1, 1))
+    with pytest.raises(ValueError, match=r"lower > upper for \['b'\]"):
+        Limits(names=names, velocity=(1.0, 1.0), lower=(-1.0, 2.0), upper=(1.0, 1.0))
+
+
 def _check_base(card: RobotCard, robot) -> None:
     limits = robot.config.limits  # the drive the robot integrates with
     assert (limits.max_linear_velocity, limits.max_angular_velocity) == card.limits.velocity
@@ -60,13 +75,20 @@ def _check_arm(card: RobotCard, robot) -> None:
     for j in range(client.getNumJoints(uid)):
         info = client.getJointInfo(uid, j)
         joints[info[1].decode()] = info
+    assert card.limits.position_range is not None
+    low, high = card.limits.position_range
     for i, name in enumerate(card.limits.names):  # the URDF PyBullet loaded
         _, _, _, _, _, _, _, _, lower, upper, _, velocity, *_ = joints[name]
-        assert (lower, upper) == pytest.approx((-card.limits.position[i], card.limits.position[i]))
+        assert (lower, upper) == pytest.approx((low[i], high[i]))
         assert velocity == pytest.approx(card.limits.velocity[i], rel=1e-7)
-    np.testing.assert_allclose(robot._controller.limits, card.limits.position)
+    # The controller clips every target into the card's range (symmetric or not).
+    far = np.full(len(card.limits.names), 1e3)
+    np.testing.assert_allclose(robot._controller.clip(-far), low)
+    np.testing.assert_allclose(robot._controller.clip(far), high)
     np.testing.assert_allclose(robot._controller.max_velocity, card.limits.velocity)
-    assert robot.model.dh == card.geometry.dh
+    model = getattr(robot, "model", None)  # an arm that exposes its kinematic model (the UR)
+    if model is not None:
+        assert model.dh == card.geometry.dh
 
 
 @pytest.mark.parametrize("name", sorted(CARDS))

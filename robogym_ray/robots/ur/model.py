@@ -35,6 +35,7 @@ import pybullet as p
 from robogym_ray.errors import InvalidActionError, InvalidStateError
 from robogym_ray.robots.base import SimRobot, StateRequest, StateSnapshot
 from robogym_ray.robots.command_handler import CommandHandlerConfig
+from robogym_ray.robots.objects import ObjectTrajectory, build_trajectory, parked
 from robogym_ray.robots.sim import PyBulletWorld
 from robogym_ray.robots.ur.config import SCENES, URConfig, parse_options
 from robogym_ray.robots.ur.controller import JointTrajectoryController
@@ -47,7 +48,6 @@ from robogym_ray.robots.ur.geometry import (
     UR_MODELS,
     urdf_path,
 )
-from robogym_ray.robots.ur.objects import ObjectTrajectory, build_trajectory, parked
 from robogym_ray.robots.ur.state import (
     ALL_KEYS,
     N_OBJECTS,

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from robogym_ray.errors import InvalidStateError
-from robogym_ray.robots.ur.objects import build_trajectory
+from robogym_ray.robots.objects import build_trajectory
 
 
 def _build(function: str, seed: int = 0, **params: float):

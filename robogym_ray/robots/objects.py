@@ -1,4 +1,7 @@
-"""Object trajectories of robo-gym's UR objects controller (spec c.2.4), sampled at 100 Hz.
+"""Object trajectories of robo-gym's objects controller (spec c.2.4), sampled at 100 Hz.
+
+Robot-generic: any arm's server that moves objects on SetState (``rs_mode`` with objects) builds
+them here; the function names are robo-gym's wire names (``3d_spline_ur5_workspace`` included).
 
 A SetState carries ``object_<i>_function`` in ``string_params`` and the function's parameters as
 ``object_<i>_<name>`` floats. Each function becomes a looping array of xyz samples (reference
