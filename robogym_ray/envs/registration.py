@@ -24,6 +24,7 @@ _MIR = "robogym_ray.envs.mir100_tasks:"
 _MIRS = "robogym_ray.envs.mir100_sectors:"
 _UR = "robogym_ray.envs.ur_tasks:"
 _URA = "robogym_ray.envs.ur_avoidance:"
+_PANDA = "robogym_ray.envs.panda_tasks:"
 
 RobotVariant = tuple[str, dict[str, Any]]
 """(robot as spelled in the id, env kwargs that pick it)."""
@@ -53,6 +54,9 @@ TASKS: tuple[tuple[str, str, tuple[RobotVariant, ...]], ...] = (
     # Avoidance tasks: object trajectories and reset poses are laid out for the UR5 workspace.
     ("BasicAvoidance", _URA + "BasicAvoidanceUR", _ur("UR5")),
     ("AvoidanceRaad2022", _URA + "AvoidanceRaad2022UR", _ur("UR5")),
+    # robo-gym 2.1.0's Panda tasks (14 obs / 6 actions and 29 / 6).
+    ("EmptyEnvironment", _PANDA + "EmptyEnvironmentPanda", (("Panda", {}),)),
+    ("EndEffectorPositioning", _PANDA + "EndEffectorPositioningPanda", (("Panda", {}),)),
 )
 NONDETERMINISTIC = frozenset({"AvoidanceRaad2022"})
 """Tasks whose reset is not a function of the env seed alone: the sphere's spline is drawn by the

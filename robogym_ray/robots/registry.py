@@ -17,6 +17,7 @@ from robogym_ray.robots.card import RobotCard
 CARD_MODULES: tuple[str, ...] = (
     "robogym_ray.robots.mir100.card",
     "robogym_ray.robots.ur.card",
+    "robogym_ray.robots.panda.card",
 )
 """The robot families: one ``card.py`` each."""
 

@@ -1,0 +1,156 @@
+"""Configuration of the simulated Panda and its parsing from ``panda_robot_server.launch``
+arguments (robo-gym-robot-servers 2.1.0)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+from robogym_ray.errors import ConfigError, UnknownRobotError
+from robogym_ray.robots.panda.state import RS_MODES
+from robogym_ray.robots.validation import check_range, parse_option_number, quote
+
+
+@dataclass(frozen=True)
+class PandaScene:
+    """What surrounds the arm (the robot stands at the world origin in every world)."""
+
+    ground_z: float
+    """Height of the ground plane (m)."""
+    table: bool
+    """robo-gym's 1.27 x 0.9 x 1 m demo table, top at z = 0 centred at x = 0.4 (the robot is
+    mounted on it); Gazebo reports touching it as a contact like any other."""
+
+
+SCENES: dict[str, PandaScene] = {
+    "empty": PandaScene(ground_z=0.0, table=False),
+    "tabletop": PandaScene(ground_z=-1.0, table=True),
+}
+WORLDS: dict[str, str] = {
+    "empty.world": "empty",
+    "empty_no_gravity.world": "empty",
+    "tabletop_sphere50_no_collision_no_gravity.world": "tabletop",
+}
+"""robo-gym ``world_name`` -> our scene (gravity does not matter to a kinematic arm)."""
+DEFAULT_WORLD = "empty.world"
+
+REFERENCE_FRAMES = ("world", "base", "panda_link0")
+"""All three coincide in robo-gym's Panda launch files (identity static transforms)."""
+EE_FRAMES = ("panda_hand", "panda_link8")
+ACTION_MODES = ("abs_pos", "delta_pos")
+"""The velocity modes of the ROS bridge are not simulated (robo-gym 2.1.0's envs assert
+abs_pos)."""
+ACTION_CYCLE_RATES = (1.0, 1000.0)
+"""Accepted ``action_cycle_rate`` (Hz); robo-gym's Panda envs send 30."""
+TICK = 0.01
+"""Target controller tick (s): each action is split into round(cycle / TICK) equal ticks."""
+
+IGNORED_OPTIONS = frozenset(
+    {"gui", "rviz_gui", "gazebo_gui", "server_port", "object_0_model_name", "object_0_frame",
+     "object_1_model_name", "object_1_frame", "object_trajectory_file_name", "pos_action_impl",
+     "subsampling_factor", "static_subsamples", "custom_joint_states_handler", "new_vel_weight",
+     "new_eff_weight", "history_limit", "x", "y", "z", "roll", "pitch", "yaw"}
+)  # fmt: skip
+"""Accepted and ignored: GUIs; the object is a 50 mm sphere with frame ``target``; the ROS
+bridge's ways of publishing position commands and averaging joint states (the kinematic
+controller has no such noise); the base pose (the launch file itself ignores it)."""
+_HANDLED = frozenset(
+    {"world_name", "rs_mode", "action_mode", "reference_frame", "ee_frame",
+     "max_velocity_scale_factor", "action_cycle_rate", "objects_controller", "n_objects",
+     "real_robot"}
+)  # fmt: skip
+
+
+@dataclass(frozen=True)
+class PandaConfig:
+    """One simulated Panda (the launch arguments we honour; defaults are the launch file's)."""
+
+    scene: str = "empty"
+    rs_mode: str = "only_robot"
+    """only_robot | 1object (adds the target object's pose)."""
+    action_mode: str = "delta_pos"
+    """abs_pos: actions are joint targets; delta_pos: targets = current + action."""
+    reference_frame: str = "base"
+    ee_frame: str = "panda_hand"
+    max_velocity_scale_factor: float = 1.0
+    """Joint speed limit = factor x the published limit."""
+    action_cycle: float = 1.0 / 25.0
+    """Seconds per action (1 / action_cycle_rate)."""
+
+    def __post_init__(self) -> None:
+        for name, value, known in (
+            ("scene", self.scene, SCENES),
+            ("rs_mode", self.rs_mode, RS_MODES),
+            ("action_mode", self.action_mode, ACTION_MODES),
+            ("reference_frame", self.reference_frame, REFERENCE_FRAMES),
+            ("ee_frame", self.ee_frame, EE_FRAMES),
+        ):
+            if value not in known:
+                error = UnknownRobotError if name == "scene" else ConfigError
+                raise error(f"unknown Panda {name} {quote(value)}; known: {', '.join(known)}")
+        for name in ("max_velocity_scale_factor", "action_cycle"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise ConfigError(f"{name} must be a positive finite number, got {value!r}")
+
+    @property
+    def actuation_cycle(self) -> float:
+        """Controller tick (s): an integral fraction of the action cycle close to ``TICK``."""
+        return self.action_cycle / max(1, round(self.action_cycle / TICK))
+
+
+def _bool(name: str, text: str) -> bool:
+    lowered = text.strip().lower()
+    if lowered in ("true", "1"):
+        return True
+    if lowered in ("false", "0"):
+        return False
+    raise ConfigError(f"option {name}={quote(text)} is not a boolean (true/false)")
+
+
+def resolve_scene(scene: str | None, world_name: str | None) -> str:
+    """Our scene from an explicit scene (or world file name) and/or ``world_name``."""
+    resolved = []
+    for name in (n for n in (scene, world_name) if n is not None):
+        key = WORLDS.get(name, name)
+        if key not in SCENES:
+            known = ", ".join([*SCENES, *WORLDS])
+            raise UnknownRobotError(f"unknown Panda scene/world {quote(name)}; known: {known}")
+        resolved.append(key)
+    if len(set(resolved)) > 1:
+        raise ConfigError(f"scene {scene!r} contradicts option world_name={world_name!r}")
+    return resolved[0] if resolved else WORLDS[DEFAULT_WORLD]
+
+
+def parse_options(model: str, scene: str | None, options: Mapping[str, str]) -> PandaConfig:
+    """A PandaConfig from launch-argument options; unknown options or values raise ConfigError.
+
+    ``model`` is the registry name (``panda``); the signature is the registry's option parser's.
+    """
+    opts = dict(options)
+    for key in opts:
+        if key not in _HANDLED and key not in IGNORED_OPTIONS:
+            known = ", ".join(sorted(_HANDLED | IGNORED_OPTIONS))
+            raise ConfigError(f"unknown Panda option {quote(key)}; known: {known}")
+    if _bool("real_robot", opts.get("real_robot", "false")):
+        raise ConfigError("option real_robot=true is not supported by the simulated Panda")
+    kwargs: dict[str, object] = {"scene": resolve_scene(scene, opts.get("world_name"))}
+    for key in ("rs_mode", "action_mode", "reference_frame", "ee_frame"):
+        if key in opts:
+            kwargs[key] = opts[key]
+    if "max_velocity_scale_factor" in opts:
+        kwargs["max_velocity_scale_factor"] = parse_option_number(
+            "max_velocity_scale_factor", opts["max_velocity_scale_factor"]
+        )
+    if "action_cycle_rate" in opts:
+        rate = parse_option_number("action_cycle_rate", opts["action_cycle_rate"])
+        low, high = ACTION_CYCLE_RATES
+        kwargs["action_cycle"] = 1.0 / check_range(
+            "option action_cycle_rate", rate, low, high, "Hz", ConfigError
+        )
+    if "objects_controller" in opts:
+        _bool("objects_controller", opts["objects_controller"])  # accepted, value checked
+    if "n_objects" in opts:
+        parse_option_number("n_objects", opts["n_objects"])
+    return PandaConfig(**kwargs)  # type: ignore[arg-type]
