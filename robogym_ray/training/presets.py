@@ -42,6 +42,7 @@ _PENDULUM = {
     "sigma": 0.2,
     "n_step": 3,
 }
+_POSITIONING = {"v_min": -250.0, "v_max": 250.0, "layer_norm": True, "min_replay_size": 500}
 _NAVIGATION = {"v_min": -300.0, "v_max": 450.0, "layer_norm": True, "min_replay_size": 500}
 
 TASKS: dict[str, TaskPreset] = {
@@ -52,10 +53,11 @@ TASKS: dict[str, TaskPreset] = {
         "RoboGymRay/ObstacleAvoidanceSectorsMir100Sim-v0", _NAVIGATION
     ),
     # Positioning: progress 50/m over <= ~2.4 m, +100 at the goal, -200 on collision.
-    "positioning": TaskPreset(
-        "RoboGymRay/EndEffectorPositioningUR10Sim-v0",
-        {"v_min": -250.0, "v_max": 250.0, "layer_norm": True, "min_replay_size": 500},
-    ),
+    "positioning": TaskPreset("RoboGymRay/EndEffectorPositioningUR10Sim-v0", _POSITIONING),
+    # robo-gym 2.1.0's Panda positioning with the positioning recipe unchanged, so the two arms
+    # compare under one setting. Its returns are much smaller (-0.005/m per step over 300 steps,
+    # +2 at the goal, -1 on collision: within about [-3.3, 2]), so the support is wide for it.
+    "panda-positioning": TaskPreset("RoboGymRay/EndEffectorPositioningPandaSim-v0", _POSITIONING),
     # Pendulum: the preset proven by benchmarks/pendulum.py (the local trainer applies it too).
     "pendulum": TaskPreset("Pendulum-v1", _PENDULUM),
 }

@@ -36,6 +36,7 @@ def script(name: str) -> ModuleType:
         "navigation-average-256-quiet",
         "navigation-average-revisit",
         "navigation-sectors-average",
+        "panda-positioning",
     ],
 )
 def test_configs_load_and_flags_override_them(name: str) -> None:
@@ -56,6 +57,19 @@ def test_configs_load_and_flags_override_them(name: str) -> None:
     from robogym_ray.training.presets import d4pg_for, resolve_task
 
     d4pg_for(resolve_task(train.task), d4pg)  # every key is a D4PGConfig field
+
+
+def test_panda_positioning_is_the_positioning_recipe_on_the_panda() -> None:
+    def load(name: str):
+        return experiment_configs(
+            build_parser(EXPERIMENTS / "configs" / f"{name}.json", "").parse_args([])
+        )
+
+    from robogym_ray.training.presets import resolve_task
+
+    panda, ur = load("panda-positioning"), load("positioning")
+    assert panda[1] == ur[1]  # the D4PG settings, unchanged
+    assert "Panda" in resolve_task(panda[0].task).env_id
 
 
 @pytest.mark.ray
