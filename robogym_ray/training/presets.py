@@ -54,10 +54,12 @@ TASKS: dict[str, TaskPreset] = {
     ),
     # Positioning: progress 50/m over <= ~2.4 m, +100 at the goal, -200 on collision.
     "positioning": TaskPreset("RoboGymRay/EndEffectorPositioningUR10Sim-v0", _POSITIONING),
-    # robo-gym 2.1.0's Panda positioning with the positioning recipe unchanged, so the two arms
-    # compare under one setting. Its returns are much smaller (-0.005/m per step over 300 steps,
-    # +2 at the goal, -1 on collision: within about [-3.3, 2]), so the support is wide for it.
-    "panda-positioning": TaskPreset("RoboGymRay/EndEffectorPositioningPandaSim-v0", _POSITIONING),
+    # robo-gym 2.1.0's Panda positioning: the positioning recipe with the critic's support fitted
+    # to its much smaller returns (-0.005/m per step over <= 300 steps, +2 at the goal, -1 on
+    # collision: within about [-3.3, 2]); +-250 would put them all in ~1 of 51 atoms.
+    "panda-positioning": TaskPreset(
+        "RoboGymRay/EndEffectorPositioningPandaSim-v0", {**_POSITIONING, "v_min": -5.0, "v_max": 5.0}
+    ),
     # Pendulum: the preset proven by benchmarks/pendulum.py (the local trainer applies it too).
     "pendulum": TaskPreset("Pendulum-v1", _PENDULUM),
 }

@@ -59,7 +59,7 @@ def test_configs_load_and_flags_override_them(name: str) -> None:
     d4pg_for(resolve_task(train.task), d4pg)  # every key is a D4PGConfig field
 
 
-def test_panda_positioning_is_the_positioning_recipe_on_the_panda() -> None:
+def test_panda_positioning_is_the_positioning_recipe_with_the_pandas_reward_scale() -> None:
     def load(name: str):
         return experiment_configs(
             build_parser(EXPERIMENTS / "configs" / f"{name}.json", "").parse_args([])
@@ -68,7 +68,9 @@ def test_panda_positioning_is_the_positioning_recipe_on_the_panda() -> None:
     from robogym_ray.training.presets import resolve_task
 
     panda, ur = load("panda-positioning"), load("positioning")
-    assert panda[1] == ur[1]  # the D4PG settings, unchanged
+    # The D4PG settings, but for the critic's support fitted to the Panda's returns.
+    assert panda[1] | {"v_min": ur[1]["v_min"], "v_max": ur[1]["v_max"]} == ur[1]
+    assert (panda[1]["v_min"], panda[1]["v_max"]) == (-5.0, 5.0)
     assert "Panda" in resolve_task(panda[0].task).env_id
 
 
