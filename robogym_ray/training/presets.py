@@ -43,6 +43,7 @@ _PENDULUM = {
     "n_step": 3,
 }
 _POSITIONING = {"v_min": -250.0, "v_max": 250.0, "layer_norm": True, "min_replay_size": 500}
+_PANDA_POSITIONING = {**_POSITIONING, "v_min": -5.0, "v_max": 5.0}
 _NAVIGATION = {"v_min": -300.0, "v_max": 450.0, "layer_norm": True, "min_replay_size": 500}
 
 TASKS: dict[str, TaskPreset] = {
@@ -58,7 +59,7 @@ TASKS: dict[str, TaskPreset] = {
     # to its much smaller returns (-0.005/m per step over <= 300 steps, +2 at the goal, -1 on
     # collision: within about [-3.3, 2]); +-250 would put them all in ~1 of 51 atoms.
     "panda-positioning": TaskPreset(
-        "RoboGymRay/EndEffectorPositioningPandaSim-v0", {**_POSITIONING, "v_min": -5.0, "v_max": 5.0}
+        "RoboGymRay/EndEffectorPositioningPandaSim-v0", _PANDA_POSITIONING
     ),
     # Pendulum: the preset proven by benchmarks/pendulum.py (the local trainer applies it too).
     "pendulum": TaskPreset("Pendulum-v1", _PENDULUM),
