@@ -111,6 +111,48 @@ def plot_success(runs: Mapping[str, Sequence[str | Path]], out: str | Path) -> P
     return out
 
 
+def first_reach(
+    history: Sequence[Mapping[str, float]], rate: float, window: int = 100
+) -> float | None:
+    """Wall seconds at which the evaluator's success rate first reached ``rate`` with a full
+    window of ``window`` episodes behind it (``summary.json``'s ``eval_history``, one episode
+    per entry), or None. Earlier entries rate fewer episodes: one success reads as 100 %."""
+    for i, entry in enumerate(history):
+        if i + 1 >= window and entry["success_rate"] >= rate:
+            return float(entry["wall_s"])
+    return None
+
+
+def plot_time_to_success(
+    summaries: Mapping[str, str | Path], out: str | Path, rate: float
+) -> tuple[Path, dict[str, float | None]]:
+    """The evaluator's success rate against wall time for several runs' ``summary.json``
+    (``eval_history``), the first full-window crossing of ``rate`` marked on each; returns
+    the figure and each run's crossing in minutes."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(7, 4))
+    reached: dict[str, float | None] = {}
+    for label, path in summaries.items():
+        history = json.loads(Path(path).read_text())["eval_history"]
+        minutes = [e["wall_s"] / 60 for e in history]
+        (line,) = ax.plot(minutes, [e["success_rate"] for e in history], label=label, lw=1.2)
+        when = first_reach(history, rate)
+        reached[label] = None if when is None else round(when / 60, 1)
+        if when is not None:
+            ax.axvline(when / 60, color=line.get_color(), ls=":", lw=1)
+    ax.axhline(rate, color="gray", lw=0.8)
+    title = f"time to {rate:.0%} (dotted: first full-window crossing)"
+    ax.set(xlabel="wall minutes", ylabel="evaluator success (last 100 episodes)",
+           ylim=(-0.02, 1.02), title=title)  # fmt: skip
+    ax.grid(alpha=0.3)
+    ax.legend(loc="lower right", fontsize=8)
+    fig.tight_layout()
+    out = Path(out)
+    fig.savefig(out, dpi=120)
+    plt.close(fig)
+    return out, reached
+
+
 def plot_targets(evaluation_json: str | Path, out: str | Path) -> Path:
     """UR targets of a final evaluation coloured by final status (3D and top view)."""
     plt = _pyplot()
@@ -233,6 +275,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         "--mir-seeds", nargs="+", type=int,
         help=f"Episode seeds drawn one by one (default: the first {CLOSE_UPS} failures).",
     )  # fmt: skip
+    parser.add_argument(
+        "--time-to", nargs="+", metavar="LABEL=SUMMARY",
+        help="summary.json files (LABEL=path): evaluator success against wall time.",
+    )  # fmt: skip
+    parser.add_argument("--rate", type=float, default=0.95, help="--time-to's target rate.")
     parser.add_argument("--out", default="figures", help="Output directory (default: figures).")
     args = parser.parse_args(argv)
     out = Path(args.out)
@@ -252,8 +299,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         written.append(plot_targets(args.ur_eval, out / "ur_targets.png"))
     if args.mir_eval:
         written.append(plot_paths(args.mir_eval, out / "mir_paths.png", args.mir_seeds))
+    if args.time_to:
+        summaries = dict(item.split("=", 1) for item in args.time_to)
+        figure, reached = plot_time_to_success(summaries, out / "time_to_success.png", args.rate)
+        written.append(figure)
+        print(json.dumps({"minutes_to_rate": reached}))
     if not written:
-        parser.error("nothing to plot: give --navigation, --positioning, --ur-eval, --mir-eval")
+        parser.error(
+            "nothing to plot: give --navigation, --positioning, --ur-eval, --mir-eval or --time-to"
+        )
     print(json.dumps([str(p) for p in written]))
     return 0
 
