@@ -258,3 +258,45 @@ def test_card_matches_the_model():
     cmd = "roslaunch panda_robot_server panda_robot_server.launch         rs_mode:=1object"
     spec = parse_launch_cmd(cmd)
     assert (spec.robot, spec.options) == ("panda", {"rs_mode": "1object"})
+
+
+# -- emulated hardware --------------------------------------------------------------------------
+FAR_GOAL = [q + d for q, d in zip(ROBO_GYM_START, (0.5, 0.3, 0.5, 0.3, 0.5, 0.3, 0.5), strict=True)]
+
+
+def _move_over_grpc(emulation, cycles: int) -> np.ndarray:
+    """Joint positions after ``cycles`` SendActionGetState towards a goal ~0.5 rad from
+    robo-gym's start in every joint (too far to reach in that time)."""
+    from robogym_ray.protocol import robot_server_pb2 as pb
+    from robogym_ray.protocol.client import RobotServerClient
+    from robogym_ray.robots.server import start_robot_server
+
+    handle = start_robot_server(
+        "panda", seed=0, options={"action_mode": "abs_pos"}, emulation=emulation
+    )
+    try:
+        with RobotServerClient(handle.address) as client:
+            client.set_state(
+                pb.State(state_dict=dict(zip(POSITION_KEYS, ROBO_GYM_START, strict=True)))
+            )
+            for _ in range(cycles):
+                reply = client.send_action_get_state(list(FAR_GOAL))
+            assert len(reply.state) == CARD.state.length
+            return np.array([reply.state_dict[k] for k in POSITION_KEYS])
+    finally:
+        handle.stop(0.0)
+
+
+def test_the_emulated_panda_is_slower_and_noisy_over_grpc() -> None:
+    """``robogym-ray serve --robot panda --emulate-hardware``: the card's hooks scale the speed
+    limit and put seeded noise on the joint readings; the protocol stays robo-gym's."""
+    from robogym_ray.robots.emulation import EmulationConfig
+
+    quiet = {"joint_noise_sigma": 0.0, "latency_ticks": 0, "actuation_bias": 0.0}
+    start = np.array(ROBO_GYM_START)
+    plain = _move_over_grpc(None, 4) - start
+    slow = _move_over_grpc(EmulationConfig(velocity_scale=0.5, **quiet), 4) - start
+    # Half the speed limit: half the distance in the same cycles (the goal is far enough).
+    np.testing.assert_allclose(slow, 0.5 * plain, atol=2e-3)
+    noisy = _move_over_grpc(EmulationConfig(**{**quiet, "joint_noise_sigma": 0.01}), 4) - start
+    assert 1e-4 < np.abs(noisy - plain).max() < 0.05
