@@ -7,7 +7,9 @@ Runs ``robogym-ray train`` (embedded Ray) for ``--wall-s`` seconds per variant, 
 
 * ``grpc-1``: the old path - every simulated env talks over gRPC to its own supervised robot-
   server actor, one env per rollout worker (``--sim-path grpc --envs-per-worker 1``);
-* ``inprocess``: the new default - the robots run inside their worker, K envs per worker.
+* ``inprocess``: the new default - the robots run inside their worker, K envs per worker;
+* ``inprocess-2t`` (only with ``--variants``): the new default with two torch threads for the
+  learner (``D4PGConfig.num_threads``; Ray gives a fractional-CPU actor one OpenMP thread).
 
 Both with the config's recipe (samples per insert included), 2 workers, no ``--init-from``.
 During each run ``benchmarks/cpu_split.py`` measures a ``--window-s`` window from ``--warm-s``
@@ -28,10 +30,12 @@ import time
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-VARIANTS = {
-    "grpc-1": ["--sim-path", "grpc", "--envs-per-worker", "1"],
-    "inprocess": [],
+VARIANTS: dict[str, tuple[list[str], dict[str, object]]] = {
+    "grpc-1": (["--sim-path", "grpc", "--envs-per-worker", "1"], {}),
+    "inprocess": ([], {}),
+    "inprocess-2t": ([], {"num_threads": 2}),
 }
+"""Variant -> (train flags, D4PG settings over the config's)."""
 ENV_SIDE = ("rollout workers", "robot servers")
 
 
@@ -43,10 +47,16 @@ def per_step(table: str, role: str) -> float:
 
 def run(name: str, args: argparse.Namespace, logdir: str, index: int) -> dict[str, object]:
     run_name = f"{name}-{index}"
-    cmd = ["robogym-ray", "train", "--config", args.config, "--workers", "2",
+    flags, d4pg = VARIANTS[name]
+    config = args.config
+    if d4pg:  # a config of its own that extends the given one
+        config = f"{logdir}/{name}.json"
+        extends = str(Path(args.config).resolve())
+        Path(config).write_text(json.dumps({"extends": extends, "d4pg": d4pg}))
+    cmd = ["robogym-ray", "train", "--config", config, "--workers", "2",
            "--total-steps", "1000000000", "--max-wall-s", str(args.wall_s),
            "--logdir", logdir, "--run-name", run_name, "--no-progress",
-           "--num-cpus", "2", *VARIANTS[name]]  # fmt: skip
+           "--num-cpus", "2", *flags]  # fmt: skip
     env = {**os.environ, "RAY_AUTH_MODE": "disabled"}
     train = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     time.sleep(args.warm_s)
@@ -79,11 +89,13 @@ def main() -> None:
     parser.add_argument("--warm-s", type=float, default=70.0)
     parser.add_argument("--window-s", type=float, default=90.0)
     parser.add_argument("--rounds", type=int, default=2)
+    parser.add_argument("--variants", nargs="+", default=["grpc-1", "inprocess"],
+                        choices=list(VARIANTS))  # fmt: skip
     args = parser.parse_args()
     logdir = tempfile.mkdtemp(prefix="fast-training-")
     rows = []
     for index in range(args.rounds):
-        for name in VARIANTS:
+        for name in args.variants:
             row = run(name, args, logdir, index)
             rows.append(row)
             print(row.pop("table"), flush=True)
@@ -92,7 +104,7 @@ def main() -> None:
           "env-side ms CPU / env step | learner ms CPU / env step |")  # fmt: skip
     print("|---|---|---|---|---|---|---|")
     for i, r in enumerate(rows):
-        print(f"| {r['variant']} | {i // len(VARIANTS)} | {r['env_steps_per_s']} | "
+        print(f"| {r['variant']} | {i // len(args.variants)} | {r['env_steps_per_s']} | "
               f"{r['learner_steps_per_s']} | {r['window_env_steps_per_s']:.0f} | "
               f"{r['env_side_ms']} | {r['learner_ms']} |")  # fmt: skip
 
