@@ -321,6 +321,8 @@ def test_emulated_workers_train_on_emulated_robots_and_the_evaluator_does_not(
         task=NAV,
         workers=2,
         emulated_workers=1,
+        sim_path="grpc",  # supervised servers, which the watcher can see (in-process: below)
+        envs_per_worker=1,
         total_steps=1500,
         logdir=str(tmp_path),
         run_name=run,
@@ -383,3 +385,19 @@ def test_eval_interval_spaces_the_evaluator_calls(tmp_path: Path) -> None:
     back_to_back = run_training(pendulum(tmp_path, "b2b", 1500))
     assert len(spaced["eval_history"]) == 1  # the first call, then none for 10^6 s
     assert len(back_to_back["eval_history"]) > 1
+
+
+def test_in_process_workers_get_emulated_robots_and_the_evaluator_does_not() -> None:
+    """The same split on the default path: worker 0's provider builds emulated robots, worker 1's
+    and the evaluator's plain ones (the providers are all a program hands its actors)."""
+    from robogym_ray.envs.inprocess import InProcessServerProvider
+    from robogym_ray.training.presets import resolve_task
+    from robogym_ray.training.program import Program
+
+    program = Program.__new__(Program)  # the provider choice only: no actors
+    program.cfg = TrainConfig(task=NAV, workers=2, emulated_workers=1)
+    program.preset, program.supervision = resolve_task(NAV), None
+    program.emulation = EmulationConfig(laser_noise_sigma=0.03)
+    providers = [program._env_kwargs(i)["provider"] for i in (0, 1, None)]
+    assert all(isinstance(p, InProcessServerProvider) for p in providers)
+    assert [p.emulation for p in providers] == [program.emulation, None, None]
