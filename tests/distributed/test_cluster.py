@@ -194,6 +194,8 @@ def test_two_nodes_robot_servers_on_the_second(temp_dir: str, tmp_path: Path) ->
                 f"127.0.0.1:{port}",
                 "--sim-path",
                 "grpc",
+                "--envs-per-worker",
+                "1",
                 "--server-resource",
                 "robot_node",
                 "--no-progress",
