@@ -33,6 +33,7 @@ from typing import Any
 
 import ray
 
+from robogym_ray.distributed.local_ray import start_local_ray
 from robogym_ray.distributed.names import NAMESPACE, SUPERVISOR_NAME
 from robogym_ray.training.config import TrainConfig
 from robogym_ray.training.run import run_training
@@ -270,9 +271,8 @@ def main() -> int:
     args = parser.parse_args()
     logdir = tempfile.mkdtemp(prefix="chaos-")
     temp_dir = tempfile.mkdtemp(prefix="rgc", dir="/tmp")  # short: Ray's socket paths
-    ray.init(
-        num_cpus=2,
-        include_dashboard=False,
+    start_local_ray(
+        2,
         _temp_dir=temp_dir,
         logging_level="ERROR",
         log_to_driver=False,

@@ -22,6 +22,7 @@ from typing import Any
 
 import ray
 
+from robogym_ray.distributed.local_ray import start_local_ray
 from robogym_ray.distributed.remote import start_supervisor
 from robogym_ray.errors import RobotServerError
 from robogym_ray.protocol.client import Deadlines, RobotServerClient
@@ -77,9 +78,8 @@ def main() -> None:
     parser.add_argument("--probe-deadline", type=float, default=0.5)
     args = parser.parse_args()
     temp_dir = tempfile.mkdtemp(prefix="rgb", dir="/tmp")
-    ray.init(
-        num_cpus=2,
-        include_dashboard=False,
+    start_local_ray(
+        2,
         _temp_dir=temp_dir,
         logging_level="ERROR",
         log_to_driver=False,

@@ -19,6 +19,7 @@ import numpy as np
 import ray
 
 from robogym_ray.distributed import remote
+from robogym_ray.distributed.local_ray import start_local_ray
 from robogym_ray.distributed.provider import SupervisorServerProvider
 from robogym_ray.experience.rollout import box_dims, make_gym_env
 from robogym_ray.learner.service import LearnerService
@@ -41,7 +42,7 @@ def main() -> None:
     os.environ.setdefault("RAY_AUTH_MODE", "disabled")
     preset = resolve_task(args.task)
     d4pg = d4pg_for(preset)
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    start_local_ray(2, log_to_driver=False)
     supervisor = remote.start_supervisor(
         SupervisorConfig(server_num_cpus=0.2), name="bench-supervisor"
     )

@@ -91,14 +91,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import ray  # lazy: `robogym-ray --help` must not import Ray
 
+    from robogym_ray.distributed.local_ray import join_ray, start_local_ray
     from robogym_ray.distributed.names import NAMESPACE
     from robogym_ray.distributed.remote import start_supervisor
 
     cfg = config_from_args(ManagerConfig, args)
     if cfg.ray_address:
-        ray.init(address=cfg.ray_address, namespace=NAMESPACE)
+        join_ray(cfg.ray_address, namespace=NAMESPACE)
     else:
-        ray.init(num_cpus=cfg.num_cpus, include_dashboard=False, namespace=NAMESPACE)
+        start_local_ray(cfg.num_cpus, namespace=NAMESPACE)
     try:
         supervisor = start_supervisor(
             cfg.supervisor_config(),

@@ -18,6 +18,7 @@ import numpy as np
 import ray
 from ray.exceptions import RayActorError, RayTaskError
 
+from robogym_ray.distributed.local_ray import start_local_ray
 from robogym_ray.distributed.names import NAMESPACE
 from robogym_ray.errors import RobotServerError
 from robogym_ray.protocol import robot_server_pb2 as pb
@@ -101,7 +102,7 @@ def real_robot_actor(env_id: str, address: str, token: str | None) -> Iterator[A
 
     started = not ray.is_initialized()
     if started:
-        ray.init(num_cpus=1, include_dashboard=False, namespace=NAMESPACE, log_to_driver=False)
+        start_local_ray(1, namespace=NAMESPACE, log_to_driver=False)
     name = f"eval-real-{os.getpid()}-{time.monotonic_ns()}"
     actor = remote.start_real_robot(name, address, safety_for(env_id), token=token)
     try:

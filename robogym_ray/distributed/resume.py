@@ -19,9 +19,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import ray  # lazy: `robogym-ray --help` must not import Ray
 
+    from robogym_ray.distributed.local_ray import join_ray
     from robogym_ray.distributed.remote import NAMESPACE, get_real_robot
 
-    ray.init(address=args.ray_address, namespace=NAMESPACE, logging_level="ERROR")
+    join_ray(args.ray_address, namespace=NAMESPACE, logging_level="ERROR")
     try:
         robot = get_real_robot(args.name)
     except ValueError:

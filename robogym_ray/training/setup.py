@@ -14,6 +14,7 @@ import numpy as np
 import ray
 
 from robogym_ray.distributed import remote
+from robogym_ray.distributed.local_ray import join_ray, start_local_ray
 from robogym_ray.distributed.provider import SupervisorServerProvider
 from robogym_ray.distributed.real_client import RealRobotClientFactory
 from robogym_ray.envs.registration import variant_id
@@ -39,9 +40,9 @@ def ensure_ray(cfg: TrainConfig) -> bool:
     if ray.is_initialized():
         return False
     if cfg.address:
-        ray.init(address=cfg.address, log_to_driver=False)
+        join_ray(cfg.address, log_to_driver=False)
     else:
-        ray.init(num_cpus=cfg.num_cpus, include_dashboard=False, log_to_driver=False)
+        start_local_ray(cfg.num_cpus, log_to_driver=False)
     return True
 
 

@@ -18,13 +18,14 @@ import pytest
 @pytest.fixture(scope="session")
 def ray_cluster() -> Iterator[None]:
     ray = pytest.importorskip("ray")
+    from robogym_ray.distributed.local_ray import start_local_ray
+
     if ray.is_initialized():  # somebody's test started it already: share it
         yield None
         return
     temp_dir = tempfile.mkdtemp(prefix="rgr", dir="/tmp")
-    ray.init(
-        num_cpus=2,
-        include_dashboard=False,
+    start_local_ray(
+        2,
         namespace="robogym-ray",
         _temp_dir=temp_dir,
         logging_level="ERROR",

@@ -1,0 +1,136 @@
+"""The embedded Ray listens on loopback only (issue 20, item 9).
+
+Each case starts its own Ray in a child process (the suite's shared Ray is already up in this
+one), runs one actor so that a core worker listens too, and lists every listening TCP socket of
+that child's descendants from /proc. The plain ``ray.init`` case is the defect as Ray 2.60 ships
+it: it shows that the scan sees Ray's ``*:port`` listeners at all.
+"""
+
+from __future__ import annotations
+
+import ipaddress
+import json
+import os
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import pytest
+
+pytestmark = [
+    pytest.mark.ray,
+    pytest.mark.skipif(not Path("/proc/net/tcp").exists(), reason="reads Linux's /proc"),
+]
+
+
+def _is_loopback(text: str) -> bool:
+    ip = ipaddress.ip_address(text)
+    mapped = getattr(ip, "ipv4_mapped", None)  # ::ffff:127.0.0.1 from an IPv6 socket
+    return ip.is_loopback or (mapped is not None and mapped.is_loopback)
+
+
+_CHILD = r"""
+import json, os, sys
+from pathlib import Path
+import ray
+from robogym_ray.distributed.local_ray import start_local_ray
+
+def descendants(root):
+    children = {}
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        children.setdefault(int(fields[1]), []).append(int(stat.parent.name))
+    found, todo = [], [root]
+    while todo:
+        pid = todo.pop()
+        found.append(pid)
+        todo.extend(children.get(pid, []))
+    return found
+
+def socket_inodes(pid):
+    inodes = set()
+    try:
+        for fd in Path(f"/proc/{pid}/fd").iterdir():
+            target = os.readlink(fd)
+            if target.startswith("socket:["):
+                inodes.add(target[8:-1])
+    except OSError:
+        pass
+    return inodes
+
+def address(hex_ip):
+    raw = bytes.fromhex(hex_ip)
+    if len(raw) == 4:
+        return ".".join(str(b) for b in raw[::-1])
+    words = [raw[i:i + 4][::-1] for i in range(0, 16, 4)]
+    import ipaddress
+    return str(ipaddress.IPv6Address(b"".join(words)))
+
+def listeners(pids):
+    inodes = set().union(*(socket_inodes(p) for p in pids))
+    found = []
+    for table in ("/proc/net/tcp", "/proc/net/tcp6"):
+        for line in Path(table).read_text().splitlines()[1:]:
+            cols = line.split()
+            if cols[3] == "0A" and cols[9] in inodes:  # 0A: LISTEN
+                ip, port = cols[1].split(":")
+                found.append([address(ip), int(port, 16)])
+    return found
+
+kwargs = dict(_temp_dir=sys.argv[2], include_dashboard=False, log_to_driver=False,
+              logging_level="ERROR")
+if sys.argv[1] == "ours":
+    node = start_local_ray(1, **kwargs)
+else:
+    ray.init(num_cpus=1, **kwargs)
+    node = ray.util.get_node_ip_address()
+
+@ray.remote(num_cpus=0.1)
+class Probe:
+    def pid(self):
+        return os.getpid()
+
+probe = Probe.remote()
+worker_pid = ray.get(probe.pid.remote())
+pids = descendants(os.getpid())
+print(json.dumps({"node": node, "worker_in_tree": worker_pid in pids,
+                  "listeners": listeners(pids)}))
+ray.shutdown()
+"""
+
+
+def _listeners_of(mode: str) -> dict:
+    temp_dir = tempfile.mkdtemp(prefix="rgl", dir="/tmp")  # short: Ray's socket paths
+    env = {**os.environ, "RAY_ADDRESS": ""}
+    env.pop("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", None)
+    done = subprocess.run(
+        [sys.executable, "-c", _CHILD, mode, temp_dir],
+        capture_output=True,
+        text=True,
+        timeout=180,
+        env=env,
+    )
+    assert done.returncode == 0, done.stderr[-3000:]
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def test_the_embedded_ray_listens_on_loopback_only() -> None:
+    seen = _listeners_of("ours")
+    assert seen["node"] == "127.0.0.1"
+    assert seen["worker_in_tree"], "the actor's worker was not found among Ray's processes"
+    # GCS, raylet (node manager + object manager), the core workers, the agents.
+    assert len(seen["listeners"]) >= 4, seen
+    exposed = [(ip, port) for ip, port in seen["listeners"] if not _is_loopback(ip)]
+    assert exposed == [], f"listening beyond loopback: {exposed}"
+
+
+def test_plain_ray_init_listens_on_every_interface() -> None:
+    # Documents why start_local_ray exists; if a later Ray binds loopback on its own, this is
+    # the test to drop (and start_local_ray's switch may be dropped with it).
+    seen = _listeners_of("plain")
+    exposed = [ip for ip, _ in seen["listeners"] if not _is_loopback(ip)]
+    assert exposed, seen
