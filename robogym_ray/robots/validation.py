@@ -60,6 +60,14 @@ def parse_option_number(name: str, text: str) -> float:
     return value
 
 
+def parse_cycle_option(name: str, text: str, rates: tuple[float, float]) -> float:
+    """A launch option that gives a rate (Hz) as the cycle it means (s): ``1 / rate``, the rate
+    finite and within ``rates`` (a rate of 1e-3 Hz would make one action simulate 1,000 s)."""
+    rate = parse_option_number(name, text)
+    low, high = rates
+    return 1.0 / check_range(f"option {name}", rate, low, high, "Hz", ConfigError)
+
+
 def parse_option_bool(name: str, text: str) -> bool:
     """A launch option's value as roslaunch reads a boolean (``true``/``1``, ``false``/``0``)."""
     lowered = text.strip().lower()

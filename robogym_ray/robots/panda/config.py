@@ -11,7 +11,7 @@ from robogym_ray.errors import ConfigError, UnknownRobotError
 from robogym_ray.robots.panda.state import RS_MODES
 from robogym_ray.robots.validation import (
     check_option_names,
-    check_range,
+    parse_cycle_option,
     parse_option_bool,
     parse_option_number,
     quote,
@@ -128,10 +128,8 @@ def parse_options(model: str, scene: str | None, options: Mapping[str, str]) -> 
             "max_velocity_scale_factor", opts["max_velocity_scale_factor"]
         )
     if "action_cycle_rate" in opts:
-        rate = parse_option_number("action_cycle_rate", opts["action_cycle_rate"])
-        low, high = ACTION_CYCLE_RATES
-        kwargs["action_cycle"] = 1.0 / check_range(
-            "option action_cycle_rate", rate, low, high, "Hz", ConfigError
+        kwargs["action_cycle"] = parse_cycle_option(
+            "action_cycle_rate", opts["action_cycle_rate"], ACTION_CYCLE_RATES
         )
     if "objects_controller" in opts:
         parse_option_bool("objects_controller", opts["objects_controller"])  # value checked

@@ -11,7 +11,7 @@ from robogym_ray.robots.ur.geometry import UR_MODELS
 from robogym_ray.robots.ur.state import RS_MODES
 from robogym_ray.robots.validation import (
     check_option_names,
-    check_range,
+    parse_cycle_option,
     parse_option_bool,
     parse_option_number,
     resolve_scene,
@@ -142,10 +142,9 @@ def parse_options(model: str, scene: str | None, options: Mapping[str, str]) -> 
             "max_velocity_scale_factor", opts["max_velocity_scale_factor"]
         )
     if "action_cycle_rate" in opts:
-        rate = parse_option_number("action_cycle_rate", opts["action_cycle_rate"])
-        low, high = ACTION_CYCLE_RATES
-        rate = check_range("option action_cycle_rate", rate, low, high, "Hz", ConfigError)
-        kwargs["action_cycle"] = 1.0 / rate
+        kwargs["action_cycle"] = parse_cycle_option(
+            "action_cycle_rate", opts["action_cycle_rate"], ACTION_CYCLE_RATES
+        )
     if "objects_controller" in opts:
         kwargs["objects_controller"] = parse_option_bool(
             "objects_controller", opts["objects_controller"]
