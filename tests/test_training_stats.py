@@ -32,6 +32,16 @@ def test_record_counts_steps_and_keeps_revisits_out_of_the_task_rates() -> None:
     assert list(s.revisit_statuses) == ["collision"] and list(s.returns) == [10.0, 1.0]
 
 
+def test_all_restarts_adds_the_supervisors_to_the_runs_own() -> None:
+    s = RunStats()
+    stats.record(s, RolloutResult(None, [], steps=5, worker=0, faults={"invalid_state": 2}))
+    s.restarts["hung"] += 1  # a worker the loop killed past its deadline
+    total = stats.all_restarts(s, {"connection": 3, "hung": 1})
+    assert total["connection"] == 3 and total["invalid_state"] == 2 and total["hung"] == 2
+    assert total["manual"] == 0  # every cause is listed, zeros included
+    assert s.restarts["hung"] == 1  # the run's own counter is left as it was
+
+
 def scalars(s: RunStats, **kw) -> dict[str, float]:
     args = dict(
         wall_s=10.0, first_learner_step=100, noise_scale=0.5, weights_versions=[150, 90],

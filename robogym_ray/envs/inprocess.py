@@ -178,9 +178,12 @@ class InProcessServerProvider:
     emulation: EmulationConfig | None = None
     state_limit: float = 1e4
     restart: RestartPolicy = field(default_factory=RestartPolicy)
-    restarts: Counter[str] = field(default_factory=Counter)
-    """Rebuilds by cause (``FaultCause`` values), over this provider's life."""
     _book: RestartBook | None = field(default=None, repr=False)
+
+    @property
+    def restarts(self) -> Counter[str]:
+        """Rebuilds by cause (``FaultCause`` values), over this provider's life (a copy)."""
+        return Counter() if self._book is None else Counter(self._book.counts)
 
     def acquire(
         self, robot: str, scene: str | None, options: Mapping[str, str], seed: int | None
@@ -207,8 +210,6 @@ class InProcessServerProvider:
         if self._book is None:
             self._book = RestartBook(self.restart, "in-process simulation")
         decision = self._book.record(cause, time.monotonic())
-        self.restarts.clear()
-        self.restarts.update(self._book.counts)
         if not decision.restart:
             raise RobotServerError(decision.message, address=address, cause="given_up")
         log.warning("in-process simulation %s faulted (%s); rebuilt", address, cause)

@@ -15,12 +15,13 @@ from typing import Any, ClassVar
 import numpy as np
 from gymnasium import spaces
 
+from robogym_ray.envs.arm_common import ArmTask
 from robogym_ray.envs.base import RobotServerEnv, StepInfo
 from robogym_ray.envs.frames import box, frame_xyz, in_frame, spherical
 from robogym_ray.envs.outcomes import COLLISION, SUCCESS
 from robogym_ray.envs.render import RenderConfig
 from robogym_ray.envs.render.canvas import Canvas, PerspectiveProjection, ViewCamera
-from robogym_ray.errors import ConfigError, InvalidStateError
+from robogym_ray.errors import ConfigError
 from robogym_ray.protocol import robot_server_pb2 as pb
 from robogym_ray.protocol.client import RobotServerClient
 from robogym_ray.robots.panda.model import JOINT_NAMES, LOWER, UPPER, forward_kinematics
@@ -32,8 +33,6 @@ START_SPREAD = (1.5, 0.25, 0.5, 1.0, 0.4, 3.14, 1.0)
 """robo-gym 2.1.0's ``random_joint_offset`` half-widths (rad) for ``randomize_start``."""
 TARGET_BOX = ((0.35, 0.65), (-0.2, 0.2), (0.15, 0.5))
 """x, y, z ranges (m, ``world``) of the end-effector targets."""
-RESET_TOLERANCE = 0.05
-"""rad: a reset fails if any joint is farther than this from the request."""
 POSITION_TOLERANCE = 0.1
 """Normalised positions are observed within +-(1 + this) (robo-gym's default tolerance)."""
 
@@ -48,7 +47,7 @@ def denormalize(a: np.ndarray) -> np.ndarray:
     return LOWER + (np.clip(np.asarray(a, np.float64), -1.0, 1.0) + 1.0) / 2.0 * (UPPER - LOWER)
 
 
-class PandaTask(RobotServerEnv):
+class PandaTask(ArmTask):
     """A task on the Panda: absolute joint targets, normalised, some joints fixed.
 
     Args:
@@ -58,7 +57,9 @@ class PandaTask(RobotServerEnv):
     """
 
     metadata: ClassVar[dict[str, Any]] = {**RobotServerEnv.metadata, "render_fps": 30}
-    rs_mode: ClassVar[str] = "only_robot"
+    joint_names = JOINT_NAMES
+    position_keys = POSITION_KEYS
+    velocity_keys = VELOCITY_KEYS
     world: ClassVar[str] = "empty_no_gravity.world"
     velocity_scale: ClassVar[float] = 0.2
     action_rate: ClassVar[float] = 30.0
@@ -99,24 +100,8 @@ class PandaTask(RobotServerEnv):
         float_params: Mapping[str, float] | None = None,
     ) -> pb.State:
         """robo-gym 2.1.0's SetState (the seven positions only), then GetState and checks."""
-        client.set_state(
-            pb.State(
-                state_dict={k: float(q) for k, q in zip(POSITION_KEYS, joints, strict=True)},
-                string_params=dict(string_params or {}),
-                float_params={k: float(v) for k, v in (float_params or {}).items()},
-            )
-        )
-        msg = self.checked(client.get_state())
-        off = np.abs(self.joints(msg) - joints)
-        if np.any(off > RESET_TOLERANCE):
-            i = int(np.argmax(off))
-            raise InvalidStateError(
-                f"reset joint positions not within {RESET_TOLERANCE} rad of the request: "
-                f"{JOINT_NAMES[i]} at {self.joints(msg)[i]:.4f}, asked {joints[i]:.4f} "
-                f"({self._where()})"
-            )
-        self.start_joints = np.asarray(joints, dtype=np.float64)
-        return msg
+        goal = {k: float(q) for k, q in zip(POSITION_KEYS, joints, strict=True)}
+        return self._set_joint_goal(client, goal, joints, string_params, float_params)
 
     def _send(self, client: RobotServerClient, action: np.ndarray) -> pb.State:
         """Active joints from ``action``, fixed ones at their start; denormalised to rad."""
@@ -124,35 +109,9 @@ class PandaTask(RobotServerEnv):
         full[self.active] = action
         return self.checked(client.send_action_get_state(denormalize(full)))
 
-    def checked(self, msg: pb.State) -> pb.State:
-        keys = set(msg.state_dict)
-        if keys != self.keys:
-            missing, extra = sorted(self.keys - keys), sorted(keys - self.keys)
-            raise InvalidStateError(
-                f"robot server state keys do not match rs_mode {self.rs_mode!r}: missing "
-                f"{missing[:5]}, extra {extra[:5]} ({len(keys)} keys, expected "
-                f"{len(self.keys)}; {self._where()})"
-            )
-        return msg
-
     # -- reading a state -------------------------------------------------------------------
-    @staticmethod
-    def joints(msg: pb.State) -> np.ndarray:
-        return np.array([msg.state_dict[k] for k in POSITION_KEYS], dtype=np.float64)
-
-    @staticmethod
-    def velocities(msg: pb.State) -> np.ndarray:
-        return np.array([msg.state_dict[k] for k in VELOCITY_KEYS], dtype=np.float64)
-
     def joint_obs(self, msg: pb.State) -> np.ndarray:
         return np.concatenate([normalize(self.joints(msg)), self.velocities(msg)])
-
-    def collided(self, msg: pb.State) -> bool:
-        """Self/ground/table contact. The real robot's bridge reports none: always False."""
-        return not self.real_robot and msg.state_dict["in_collision"] >= 0.5
-
-    def _position(self, msg: pb.State) -> np.ndarray:
-        return frame_xyz(msg.state_dict, "ee")
 
     def _draw(self, msg: pb.State, cfg: RenderConfig) -> np.ndarray:
         return draw_panda(

@@ -13,11 +13,12 @@ from typing import Any, ClassVar
 import numpy as np
 from gymnasium import spaces
 
+from robogym_ray.envs.arm_common import ArmTask
 from robogym_ray.envs.base import RobotServerEnv
 from robogym_ray.envs.frames import frame_xyz
 from robogym_ray.envs.render import RenderConfig
 from robogym_ray.envs.render.ur import draw_ur
-from robogym_ray.errors import ConfigError, InvalidStateError
+from robogym_ray.errors import ConfigError
 from robogym_ray.protocol import robot_server_pb2 as pb
 from robogym_ray.protocol.client import RobotServerClient
 from robogym_ray.robots.ur.geometry import POSITION_LIMITS, ROS_FROM_ENV, UR_MODELS
@@ -27,8 +28,6 @@ from robogym_ray.robots.ur.state import JOINT_KEYS, POSITION_KEYS, RS_MODE_KEYS,
 JOINTS = JOINT_KEYS
 JOINT_MAX = POSITION_LIMITS
 """Position limits (rad, symmetric), env order; identical for all seven models (spec e.2)."""
-RESET_TOLERANCE = 0.05
-"""rad: a reset fails if any joint is farther than this from the request (robo-gym's check)."""
 
 
 KEYS: dict[str, frozenset[str]] = {
@@ -47,7 +46,7 @@ def to_ros(q_env: np.ndarray) -> np.ndarray:
     return np.asarray(q_env)[list(ROS_FROM_ENV)]
 
 
-class URTask(RobotServerEnv):
+class URTask(ArmTask):
     """A task on a UR arm. Subclasses set the class attributes and the task methods.
 
     Args:
@@ -59,7 +58,9 @@ class URTask(RobotServerEnv):
 
     metadata: ClassVar[dict[str, Any]] = {**RobotServerEnv.metadata, "render_fps": 20}
     """Frames at the action rate (20 Hz)."""
-    rs_mode: ClassVar[str] = "only_robot"
+    joint_names = JOINTS
+    position_keys = POSITION_KEYS
+    velocity_keys = VELOCITY_KEYS
     scene: ClassVar[str] = "empty"
     velocity_scale: ClassVar[float] = 0.2
     action_rate: ClassVar[float] = 20.0
@@ -106,52 +107,17 @@ class URTask(RobotServerEnv):
         """robo-gym's UR SetState (all keys 0 but the joint goal), then GetState and checks."""
         state_dict = dict.fromkeys(self.keys, 0.0)
         state_dict.update(zip(POSITION_KEYS, (float(q) for q in joints), strict=True))
-        client.set_state(
-            pb.State(
-                state_dict=state_dict,
-                string_params=dict(string_params or {}),
-                float_params={k: float(v) for k, v in (float_params or {}).items()},
-            )
-        )
-        msg = self.checked(client.get_state())
-        reached = self.joints(msg)
-        off = np.abs(reached - joints)
-        if np.any(off > RESET_TOLERANCE):
-            i = int(np.argmax(off))
-            raise InvalidStateError(
-                f"reset joint positions not within {RESET_TOLERANCE} rad of the request: "
-                f"{JOINTS[i]} at {reached[i]:.4f}, asked {joints[i]:.4f} ({self._where()})"
-            )
-        self.start_joints = np.asarray(joints, dtype=np.float64)
-        return msg
+        return self._set_joint_goal(client, state_dict, joints, string_params, float_params)
 
     def send_joint_targets(self, client: RobotServerClient, q_env: np.ndarray) -> pb.State:
         """Absolute joint targets (rad, env order) through SendActionGetState (ROS order)."""
         return self.checked(client.send_action_get_state(to_ros(q_env)))
 
     def checked(self, msg: pb.State) -> pb.State:
-        keys = set(msg.state_dict)
-        if keys != self.keys:
-            missing, extra = sorted(self.keys - keys), sorted(keys - self.keys)
-            raise InvalidStateError(
-                f"robot server state keys do not match rs_mode {self.rs_mode!r}: "
-                f"missing {missing[:5]}{'...' if len(missing) > 5 else ''}, extra {extra[:5]} "
-                f"({len(keys)} keys, expected {len(self.keys)}; {self._where()})"
-            )
+        """``ArmTask.checked``, keeping the state for ``last_rs_state``."""
+        msg = super().checked(msg)
         self.last_rs_state = dict(msg.state_dict)
         return msg
-
-    # -- reading a state -------------------------------------------------------------------
-    @staticmethod
-    def joints(msg: pb.State) -> np.ndarray:
-        return np.array([msg.state_dict[k] for k in POSITION_KEYS], dtype=np.float64)
-
-    @staticmethod
-    def velocities(msg: pb.State) -> np.ndarray:
-        return np.array([msg.state_dict[k] for k in VELOCITY_KEYS], dtype=np.float64)
-
-    def _position(self, msg: pb.State) -> np.ndarray:
-        return frame_xyz(msg.state_dict, "ee")
 
     def _draw(self, msg: pb.State, cfg: RenderConfig) -> np.ndarray:
         sd = msg.state_dict
@@ -168,10 +134,6 @@ class URTask(RobotServerEnv):
             collided=sd.get("in_collision", 0.0) >= 0.5,
             caption=caption,
         )
-
-    def collided(self, msg: pb.State) -> bool:
-        """Self/ground/object contact. Real robots report no collisions (spec e.2): always False."""
-        return not self.real_robot and msg.state_dict["in_collision"] >= 0.5
 
     def full_action(self, action: np.ndarray, fill: np.ndarray) -> np.ndarray:
         """Six values in env order: ``action`` on the active joints, ``fill`` on the fixed ones."""

@@ -35,6 +35,18 @@ class StateRequest:
     string_params: Mapping[str, str] = field(default_factory=dict)
 
 
+POSE_SUFFIXES = (
+    "translation_x", "translation_y", "translation_z",
+    "rotation_x", "rotation_y", "rotation_z", "rotation_w",
+)  # fmt: skip
+"""robo-gym's arm servers name a frame's pose ``<frame>_to_ref_<suffix>`` in ``state_dict``."""
+
+
+def pose_keys(frame: str) -> tuple[str, ...]:
+    """The seven ``state_dict`` keys of ``frame``'s pose (``ee``, ``object_0`` ...)."""
+    return tuple(f"{frame}_to_ref_{s}" for s in POSE_SUFFIXES)
+
+
 @dataclass(frozen=True)
 class StateSnapshot:
     """A state in robo-gym's layout, ready to be put on the wire."""

@@ -11,10 +11,10 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Collection
+from collections.abc import Collection, Iterable, Mapping
 from heapq import nsmallest
 
-from robogym_ray.errors import ConfigError, InvalidStateError, RoboGymRayError
+from robogym_ray.errors import ConfigError, InvalidStateError, RoboGymRayError, UnknownRobotError
 
 MAX_MESSAGE_CHARS = 2000
 """Longest error message put in a reply or a log line (robo-gym's client prints it whole)."""
@@ -58,6 +58,60 @@ def parse_option_number(name: str, text: str) -> float:
     if not math.isfinite(value):
         raise ConfigError(f"option {name}={quote(text)} must be finite")
     return value
+
+
+def parse_cycle_option(name: str, text: str, rates: tuple[float, float]) -> float:
+    """A launch option that gives a rate (Hz) as the cycle it means (s): ``1 / rate``, the rate
+    finite and within ``rates`` (a rate of 1e-3 Hz would make one action simulate 1,000 s)."""
+    rate = parse_option_number(name, text)
+    low, high = rates
+    return 1.0 / check_range(f"option {name}", rate, low, high, "Hz", ConfigError)
+
+
+def parse_option_bool(name: str, text: str) -> bool:
+    """A launch option's value as roslaunch reads a boolean (``true``/``1``, ``false``/``0``)."""
+    lowered = text.strip().lower()
+    if lowered in ("true", "1"):
+        return True
+    if lowered in ("false", "0"):
+        return False
+    raise ConfigError(f"option {name}={quote(text)} is not a boolean (true/false)")
+
+
+def check_option_names(robot: str, names: Iterable[str], known: Collection[str]) -> None:
+    """ConfigError for the first of ``names`` that ``robot``'s launch file does not know: a typo
+    must not silently become a default."""
+    for name in names:
+        if name not in known:
+            listed = ", ".join(sorted(known))
+            raise ConfigError(f"unknown {robot} option {quote(name)}; known: {listed}")
+
+
+def resolve_scene(
+    robot: str,
+    scene: str | None,
+    world_name: str | None,
+    scenes: Collection[str],
+    worlds: Mapping[str, str],
+    default: str,
+) -> str:
+    """The scene named by an explicit ``scene`` (a scene or a world file) and/or the launch
+    option ``world_name``, which must agree; ``default`` when neither is given.
+
+    Raises:
+        UnknownRobotError: a name that is neither a scene nor a known world file.
+        ConfigError: ``scene`` and ``world_name`` name different scenes.
+    """
+    resolved = []
+    for name in (n for n in (scene, world_name) if n is not None):
+        key = worlds.get(name, name)
+        if key not in scenes:
+            known = ", ".join([*sorted(scenes), *sorted(worlds)])
+            raise UnknownRobotError(f"unknown {robot} scene/world {quote(name)}; known: {known}")
+        resolved.append(key)
+    if len(set(resolved)) > 1:
+        raise ConfigError(f"scene {scene!r} contradicts option world_name={world_name!r}")
+    return resolved[0] if resolved else default
 
 
 def _number(value: float) -> str:

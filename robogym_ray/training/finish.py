@@ -31,7 +31,7 @@ def finish(
     summary = stats.summary(
         run_stats, final,
         task=p.preset.env_id, wall_s=round(wall_s, 2), checkpoint=checkpoint,
-        restarts=p.restart_counts(),
+        restarts=stats.all_restarts(run_stats, p.restart_counts()),
         learner_restored_from_step=learner_status["restored_from_step"],
         learner_restored_replay=learner_status["restored_replay"],
         # Sent but not in the replay: lost with a learner that Ray restarted (what came after

@@ -175,6 +175,6 @@ class TrainingLoop:
             first_learner_step=self.p.first_learner_step,
             noise_scale=setup.noise_scale(self.cfg, self.stats.env_steps),
             weights_versions=[w.weights_version for w in self.p.workers if w.alive],
-            restarts=self.p.restart_counts() if self.p.supervision else self.stats.restarts,
+            restarts=stats.all_restarts(self.stats, self.p.restart_counts()),
             best_snapshot_rate=None if best is None else best[0],
         )

@@ -57,8 +57,9 @@ class RunStats:
     restarts: Counter[str] = field(
         default_factory=lambda: Counter({cause.value: 0 for cause in FaultCause})
     )
-    """Rebuilds of in-process simulations by cause, as the workers reported them (the gRPC
-    path's restarts are the supervisor's count), plus workers killed past their deadline."""
+    """Rebuilds of in-process simulations by cause, as the workers reported them, plus workers
+    killed past their deadline (``hung``). The gRPC path's server restarts are the supervisor's
+    count: ``all_restarts`` adds them."""
     learner: dict[str, float] = field(default_factory=dict)
     eval: dict[str, float] = field(default_factory=dict)
     eval_history: list[dict[str, float]] = field(default_factory=list)
@@ -87,6 +88,15 @@ def record(stats: RunStats, result: RolloutResult) -> list[Episode]:
         stats.returns.append(ep.ret)
         counted.append(ep)
     return counted
+
+
+def all_restarts(stats: RunStats, supervisor: Mapping[str, int]) -> dict[str, int]:
+    """Every restart of the run by cause: the supervisor's robot servers (gRPC path), the
+    in-process simulations and the workers killed as hung (``stats.restarts``)."""
+    total = Counter({cause.value: 0 for cause in FaultCause})
+    total.update(supervisor)
+    total.update(stats.restarts)
+    return dict(total)
 
 
 def eval_entry(stats: RunStats, wall_s: float) -> dict[str, float]:

@@ -286,7 +286,7 @@ def pendulum(tmp_path: Path, run_name: str, total_steps: int, **more: Any) -> Tr
 
 def test_pendulum_runs_without_a_supervisor(tmp_path: Path) -> None:
     summary = run_training(pendulum(tmp_path, "pend", 600))
-    assert summary["env_steps"] >= 600 and summary["restarts"] == {}
+    assert summary["env_steps"] >= 600 and not any(summary["restarts"].values())
 
 
 def test_a_run_continues_from_another_runs_checkpoint_and_replay(tmp_path: Path) -> None:

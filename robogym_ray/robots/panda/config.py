@@ -9,7 +9,14 @@ from dataclasses import dataclass
 
 from robogym_ray.errors import ConfigError, UnknownRobotError
 from robogym_ray.robots.panda.state import RS_MODES
-from robogym_ray.robots.validation import check_range, parse_option_number, quote
+from robogym_ray.robots.validation import (
+    check_option_names,
+    parse_cycle_option,
+    parse_option_bool,
+    parse_option_number,
+    quote,
+    resolve_scene,
+)
 
 
 @dataclass(frozen=True)
@@ -100,42 +107,19 @@ class PandaConfig:
         return self.action_cycle / max(1, round(self.action_cycle / TICK))
 
 
-def _bool(name: str, text: str) -> bool:
-    lowered = text.strip().lower()
-    if lowered in ("true", "1"):
-        return True
-    if lowered in ("false", "0"):
-        return False
-    raise ConfigError(f"option {name}={quote(text)} is not a boolean (true/false)")
-
-
-def resolve_scene(scene: str | None, world_name: str | None) -> str:
-    """Our scene from an explicit scene (or world file name) and/or ``world_name``."""
-    resolved = []
-    for name in (n for n in (scene, world_name) if n is not None):
-        key = WORLDS.get(name, name)
-        if key not in SCENES:
-            known = ", ".join([*SCENES, *WORLDS])
-            raise UnknownRobotError(f"unknown Panda scene/world {quote(name)}; known: {known}")
-        resolved.append(key)
-    if len(set(resolved)) > 1:
-        raise ConfigError(f"scene {scene!r} contradicts option world_name={world_name!r}")
-    return resolved[0] if resolved else WORLDS[DEFAULT_WORLD]
-
-
 def parse_options(model: str, scene: str | None, options: Mapping[str, str]) -> PandaConfig:
     """A PandaConfig from launch-argument options; unknown options or values raise ConfigError.
 
     ``model`` is the registry name (``panda``); the signature is the registry's option parser's.
     """
     opts = dict(options)
-    for key in opts:
-        if key not in _HANDLED and key not in IGNORED_OPTIONS:
-            known = ", ".join(sorted(_HANDLED | IGNORED_OPTIONS))
-            raise ConfigError(f"unknown Panda option {quote(key)}; known: {known}")
-    if _bool("real_robot", opts.get("real_robot", "false")):
+    check_option_names("Panda", opts, _HANDLED | IGNORED_OPTIONS)
+    if parse_option_bool("real_robot", opts.get("real_robot", "false")):
         raise ConfigError("option real_robot=true is not supported by the simulated Panda")
-    kwargs: dict[str, object] = {"scene": resolve_scene(scene, opts.get("world_name"))}
+    world_name = opts.get("world_name")
+    kwargs: dict[str, object] = {
+        "scene": resolve_scene("Panda", scene, world_name, SCENES, WORLDS, WORLDS[DEFAULT_WORLD])
+    }
     for key in ("rs_mode", "action_mode", "reference_frame", "ee_frame"):
         if key in opts:
             kwargs[key] = opts[key]
@@ -144,13 +128,11 @@ def parse_options(model: str, scene: str | None, options: Mapping[str, str]) -> 
             "max_velocity_scale_factor", opts["max_velocity_scale_factor"]
         )
     if "action_cycle_rate" in opts:
-        rate = parse_option_number("action_cycle_rate", opts["action_cycle_rate"])
-        low, high = ACTION_CYCLE_RATES
-        kwargs["action_cycle"] = 1.0 / check_range(
-            "option action_cycle_rate", rate, low, high, "Hz", ConfigError
+        kwargs["action_cycle"] = parse_cycle_option(
+            "action_cycle_rate", opts["action_cycle_rate"], ACTION_CYCLE_RATES
         )
     if "objects_controller" in opts:
-        _bool("objects_controller", opts["objects_controller"])  # accepted, value checked
+        parse_option_bool("objects_controller", opts["objects_controller"])  # value checked
     if "n_objects" in opts:
         parse_option_number("n_objects", opts["n_objects"])
     return PandaConfig(**kwargs)  # type: ignore[arg-type]

@@ -21,12 +21,11 @@ exclusion keeps them from touching link 7 all the time.
 
 from __future__ import annotations
 
-import hashlib
 import math
-import os
-import tempfile
 
 import numpy as np
+
+from robogym_ray.robots.urdf import cached_urdf
 
 JOINT_NAMES: tuple[str, ...] = tuple(f"panda_joint{i}" for i in range(1, 8))
 LINK_NAMES: tuple[str, ...] = tuple(f"panda_link{i}" for i in range(1, 8))
@@ -206,16 +205,5 @@ def urdf_text() -> str:
 
 
 def urdf_path() -> str:
-    """Write the URDF to a per-user cache file named by its content hash and return the path
-    (write-then-rename, so concurrent robot servers agree and never read half a file)."""
-    text = urdf_text()
-    digest = hashlib.sha256(text.encode()).hexdigest()[:12]
-    directory = os.path.join(tempfile.gettempdir(), f"robogym_ray_urdf_{os.getuid()}")
-    os.makedirs(directory, exist_ok=True)
-    path = os.path.join(directory, f"panda_{digest}.urdf")
-    if not os.path.exists(path):
-        fd, tmp = tempfile.mkstemp(dir=directory, suffix=".urdf.tmp")
-        with os.fdopen(fd, "w") as f:
-            f.write(text)
-        os.replace(tmp, path)
-    return path
+    """The Panda's URDF as a cached file PyBullet can load (``robots/urdf.py``)."""
+    return cached_urdf("panda", urdf_text())

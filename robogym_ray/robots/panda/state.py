@@ -24,22 +24,12 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from robogym_ray.robots.base import StateSnapshot
+from robogym_ray.robots.base import StateSnapshot, pose_keys
 
 JOINT_STEMS: tuple[str, ...] = tuple(f"joint{i}" for i in range(1, 8))
 POSITION_KEYS = tuple(f"{j}_position" for j in JOINT_STEMS)
 VELOCITY_KEYS = tuple(f"{j}_velocity" for j in JOINT_STEMS)
 EFFORT_KEYS = tuple(f"{j}_effort" for j in JOINT_STEMS)
-_POSE_SUFFIXES = (
-    "translation_x", "translation_y", "translation_z",
-    "rotation_x", "rotation_y", "rotation_z", "rotation_w",
-)  # fmt: skip
-
-
-def pose_keys(frame: str) -> tuple[str, ...]:
-    return tuple(f"{frame}_to_ref_{s}" for s in _POSE_SUFFIXES)
-
-
 _ROBOT_KEYS = POSITION_KEYS + VELOCITY_KEYS + EFFORT_KEYS + pose_keys("ee") + ("in_collision",)
 RS_MODE_KEYS: dict[str, tuple[str, ...]] = {
     "only_robot": _ROBOT_KEYS,

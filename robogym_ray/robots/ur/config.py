@@ -9,7 +9,13 @@ from dataclasses import dataclass
 from robogym_ray.errors import ConfigError, UnknownRobotError
 from robogym_ray.robots.ur.geometry import UR_MODELS
 from robogym_ray.robots.ur.state import RS_MODES
-from robogym_ray.robots.validation import check_range, parse_option_number
+from robogym_ray.robots.validation import (
+    check_option_names,
+    parse_cycle_option,
+    parse_option_bool,
+    parse_option_number,
+    resolve_scene,
+)
 
 
 @dataclass(frozen=True)
@@ -108,46 +114,21 @@ def _choice(name: str, value: str, known: Iterable[str]) -> None:
         raise error(f"unknown {name} {value!r}; known: {', '.join(sorted(known))}")
 
 
-def _bool(name: str, text: str) -> bool:
-    lowered = text.strip().lower()
-    if lowered in ("true", "1"):
-        return True
-    if lowered in ("false", "0"):
-        return False
-    raise ConfigError(f"option {name}={text!r} is not a boolean (true/false)")
-
-
-def resolve_scene(scene: str | None, world_name: str | None) -> str:
-    """Scene from the explicit argument (a scene or a world file name) and/or ``world_name``."""
-    names = [n for n in (scene, world_name) if n is not None]
-    resolved = []
-    for name in names:
-        key = WORLDS.get(name, name)
-        if key not in SCENES:
-            known = sorted(SCENES) + sorted(WORLDS)
-            raise UnknownRobotError(f"unknown UR scene/world {name!r}; known: {', '.join(known)}")
-        resolved.append(key)
-    if len(set(resolved)) > 1:
-        raise ConfigError(f"scene {scene!r} contradicts option world_name={world_name!r}")
-    return resolved[0] if resolved else DEFAULT_SCENE
-
-
 def parse_options(model: str, scene: str | None, options: Mapping[str, str]) -> URConfig:
     """Build a URConfig from launch-argument style options; unknown options raise ConfigError."""
     opts = dict(options)
-    known = _HANDLED | IGNORED_OPTIONS | set(_MUST_BE_FALSE)
-    for key in opts:
-        if key not in known:
-            raise ConfigError(f"unknown UR option {key!r}; known: {', '.join(sorted(known))}")
+    check_option_names("UR", opts, _HANDLED | IGNORED_OPTIONS | set(_MUST_BE_FALSE))
     for key in _MUST_BE_FALSE:
-        if key in opts and _bool(key, opts[key]):
+        if key in opts and parse_option_bool(key, opts[key]):
             raise ConfigError(f"option {key}=true is not supported by the simulated UR")
     if "ur_model" in opts and opts["ur_model"] != model:
         raise ConfigError(f"option ur_model={opts['ur_model']!r} contradicts robot {model!r}")
     if opts.get("ee_frame", "tool0") != "tool0":
         raise ConfigError(f"option ee_frame={opts['ee_frame']!r}: only tool0 is supported")
     kwargs: dict[str, object] = {"model": model}
-    kwargs["scene"] = resolve_scene(scene, opts.get("world_name"))
+    kwargs["scene"] = resolve_scene(
+        "UR", scene, opts.get("world_name"), SCENES, WORLDS, DEFAULT_SCENE
+    )
     # rs_mode:=false (the launch default) means "use target_mode", as in the launch file.
     rs_mode = opts.get("rs_mode", "false")
     if rs_mode == "false":
@@ -161,12 +142,13 @@ def parse_options(model: str, scene: str | None, options: Mapping[str, str]) -> 
             "max_velocity_scale_factor", opts["max_velocity_scale_factor"]
         )
     if "action_cycle_rate" in opts:
-        rate = parse_option_number("action_cycle_rate", opts["action_cycle_rate"])
-        low, high = ACTION_CYCLE_RATES
-        rate = check_range("option action_cycle_rate", rate, low, high, "Hz", ConfigError)
-        kwargs["action_cycle"] = 1.0 / rate
+        kwargs["action_cycle"] = parse_cycle_option(
+            "action_cycle_rate", opts["action_cycle_rate"], ACTION_CYCLE_RATES
+        )
     if "objects_controller" in opts:
-        kwargs["objects_controller"] = _bool("objects_controller", opts["objects_controller"])
+        kwargs["objects_controller"] = parse_option_bool(
+            "objects_controller", opts["objects_controller"]
+        )
     if "n_objects" in opts:
         # the launch file does int(float(x))
         kwargs["n_objects"] = int(parse_option_number("n_objects", opts["n_objects"]))

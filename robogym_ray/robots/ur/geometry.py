@@ -13,13 +13,12 @@ wrist_2, wrist_3]`` (the URDF chain order); the wire uses ROS order (see ``ROS_F
 
 from __future__ import annotations
 
-import hashlib
 import math
-import os
-import tempfile
 from dataclasses import dataclass
 
 import numpy as np
+
+from robogym_ray.robots.urdf import cached_urdf
 
 JOINT_NAMES: tuple[str, ...] = (
     "shoulder_pan_joint",
@@ -306,21 +305,9 @@ def urdf_text(model: str | URModel) -> str:
 
 
 def urdf_path(model: str | URModel) -> str:
-    """Write the model's URDF to a per-user cache file (named by content hash) and return it.
+    """The model's URDF as a cached file PyBullet can load (``robots/urdf.py``).
 
-    Generated rather than shipped so the geometry can never drift from ``UR_MODELS``; the hash in
-    the name makes concurrent writers (several robot servers) agree on identical content.
+    Generated rather than shipped so the geometry can never drift from ``UR_MODELS``.
     """
-    text = urdf_text(model)
     name = UR_MODELS[model].name if isinstance(model, str) else model.name
-    digest = hashlib.sha256(text.encode()).hexdigest()[:12]
-    directory = os.path.join(tempfile.gettempdir(), f"robogym_ray_urdf_{os.getuid()}")
-    os.makedirs(directory, exist_ok=True)
-    path = os.path.join(directory, f"{name}_{digest}.urdf")
-    if not os.path.exists(path):
-        # Write-then-rename so a concurrent reader never sees a half-written file.
-        fd, tmp = tempfile.mkstemp(dir=directory, suffix=".urdf.tmp")
-        with os.fdopen(fd, "w") as f:
-            f.write(text)
-        os.replace(tmp, path)
-    return path
+    return cached_urdf(name, urdf_text(model))

@@ -26,17 +26,14 @@ Differences from the ROS/Gazebo server, all deliberate (sim time is free, Gazebo
 
 from __future__ import annotations
 
-import copy
-from collections.abc import Iterable, Mapping
+from collections.abc import Mapping, Sequence
 
 import numpy as np
-import pybullet as p
 
 from robogym_ray.errors import InvalidActionError, InvalidStateError
-from robogym_ray.robots.base import SimRobot, StateRequest, StateSnapshot
+from robogym_ray.robots.arm import LIMIT_TOLERANCE, SimArm, check_state_keys
+from robogym_ray.robots.base import StateRequest, StateSnapshot
 from robogym_ray.robots.command_handler import CommandHandlerConfig
-from robogym_ray.robots.objects import ObjectTrajectory, build_trajectory, parked
-from robogym_ray.robots.sim import PyBulletWorld
 from robogym_ray.robots.ur.config import SCENES, URConfig, parse_options
 from robogym_ray.robots.ur.controller import JointTrajectoryController
 from robogym_ray.robots.ur.geometry import (
@@ -55,14 +52,8 @@ from robogym_ray.robots.ur.state import (
     compose_state,
     sensor_groups,
 )
-from robogym_ray.robots.validation import preview
 
 ROS_JOINT_NAMES = tuple(JOINT_NAMES[i] for i in ROS_FROM_ENV)
-LIMIT_TOLERANCE = 1e-4
-"""Slack on position limits: float32 on the wire rounds 2*pi and pi up by ~1e-7."""
-OBJECT_RADIUS = 0.025
-CONTACT_DISTANCE = 0.0
-"""Contacts count when the signed distance is <= this (m); PyBullet also reports near misses."""
 _ROT_Z_PI = np.array([-1.0, -1.0, 1.0])
 
 
@@ -71,7 +62,7 @@ def make_ur(model: str, scene: str | None, seed: int | None, options: Mapping[st
     return URArm(parse_options(model, scene, options), seed=seed)
 
 
-class URArm(SimRobot):
+class URArm(SimArm):
     """One UR arm with its scene and objects in a PyBullet DIRECT world, stepped in sim time."""
 
     def __init__(self, config: URConfig, seed: int | None = None) -> None:
@@ -85,23 +76,11 @@ class URArm(SimRobot):
         )
         self.sensor_periods = {}
         self.groups = sensor_groups(config.rs_mode)
-        self._rng = np.random.default_rng(seed)
-        self._controller = JointTrajectoryController(
+        self._target = np.zeros(6)
+        controller = JointTrajectoryController(
             config.max_velocity_scale_factor * np.asarray(self.model.max_velocity), POSITION_LIMITS
         )
-        self._world = PyBulletWorld()
-        self._build_scene()
-        self.time = 0.0
-        """Sim time (s), advanced only by ``advance``."""
-        n_objects = N_OBJECTS[config.rs_mode]
-        self._objects: list[ObjectTrajectory] = [parked(i) for i in range(n_objects)]
-        self._object_start = 0.0
-        self._object_index = [-1] * n_objects
-        self._last_command: np.ndarray | None = None
-        self._target = np.zeros(6)
-        self.in_collision = False
-        self._update_objects()
-        self._check_collision()
+        super().__init__(controller, N_OBJECTS[config.rs_mode], seed)
 
     # -- scene ----------------------------------------------------------------------------------
     def _build_scene(self) -> None:
@@ -109,46 +88,11 @@ class URArm(SimRobot):
         world.add_plane("ground")
         if scene.table:
             world.add_box("table", (0.5, 0.5, 0.05), (-0.05, 0.2, 0.05))
-        flags = p.URDF_USE_SELF_COLLISION | p.URDF_USE_SELF_COLLISION_EXCLUDE_PARENT
-        self._uid = world.load_urdf(
-            "robot", urdf_path(self.model), (0.0, 0.0, BASE_LINK_HEIGHT), flags=flags
-        )
-        index = {}
-        for j in range(world.client.getNumJoints(self._uid)):
-            info = world.client.getJointInfo(self._uid, j)
-            index[info[1].decode()] = j
-            index[info[12].decode()] = j  # child link index == joint index in PyBullet
+        index = self._load_robot(urdf_path(self.model), (0.0, 0.0, BASE_LINK_HEIGHT))
         self._joint_ids = [index[n] for n in JOINT_NAMES]
-        self._moving_links = frozenset(index[n] for n in LINK_NAMES)
+        self._contact_links = frozenset(index[n] for n in LINK_NAMES)
         self._frame_ids = [index["tool0"], index["forearm_link"]]
-        self._object_uids = [
-            world.add_sphere(
-                f"object_{i}", OBJECT_RADIUS, (float(i), 0.0, 3.0),
-                collision=scene.object_collision,
-            )
-            for i in range(N_OBJECTS[self.config.rs_mode])
-        ]  # fmt: skip
-        self._colliding_objects = scene.object_collision
-        self._bind_calls()
-        self._joints_stale = True
-
-    def _bind_calls(self) -> None:
-        # BulletClient builds a functools.partial on every attribute access; the hot loop uses
-        # these once-built ones instead (a measurable share of a 5-tick action).
-        client = self._world.client
-        self._reset_joints = client.resetJointStatesMultiDof
-        self._reset_base = client.resetBasePositionAndOrientation
-        self._detect = client.performCollisionDetection
-        self._contacts = client.getContactPoints
-        self._link_states = client.getLinkStates
-
-    def _sync_joints(self) -> None:
-        """Copy the controller's positions into PyBullet, lazily (only contacts and frames read
-        them, and a latched collision flag makes per-tick contact queries pointless)."""
-        if self._joints_stale:
-            q = self._controller.position.reshape(6, 1).tolist()
-            self._reset_joints(self._uid, self._joint_ids, q)
-            self._joints_stale = False
+        self._add_objects(N_OBJECTS[self.config.rs_mode], collision=scene.object_collision)
 
     # -- actions --------------------------------------------------------------------------------
     def validate_action(self, action: np.ndarray) -> np.ndarray:
@@ -182,74 +126,15 @@ class URArm(SimRobot):
             self._target = self._controller.clip(env)
         self._controller.command(self._target, clipped=True)
 
-    def advance(self, dt: float) -> None:
-        if not dt > 0:
-            raise ValueError(f"advance needs dt > 0 s, got {dt!r}")
-        self.time += dt
-        moved = self._controller.step(dt)
-        self._joints_stale = self._joints_stale or moved
-        moved = self._update_objects() or moved
-        # A latched flag cannot change until SetState, so skip the (dominant) contact query.
-        if moved and not self.in_collision:
-            self._check_collision()
-
-    # -- objects and contacts -------------------------------------------------------------------
-    def _update_objects(self, force: bool = False) -> bool:
-        """Move objects to their current sample; returns whether a colliding object moved."""
-        moved = False
-        t = self.time - self._object_start
-        for i, trajectory in enumerate(self._objects):
-            idx = trajectory.index(t)
-            if idx == self._object_index[i] and not force:
-                continue
-            self._object_index[i] = idx
-            xyz = self._ref_to_world(trajectory.samples[idx])
-            self._reset_base(self._object_uids[i], xyz.tolist(), (0.0, 0.0, 0.0, 1.0))
-            moved = moved or self._colliding_objects
-        return moved
-
-    def _check_collision(self) -> None:
-        self._sync_joints()
-        self._detect()
-        for contact in self._contacts(bodyA=self._uid):
-            if contact[8] > CONTACT_DISTANCE:
-                continue
-            ours_a = contact[1] == self._uid and contact[3] in self._moving_links
-            ours_b = contact[2] == self._uid and contact[4] in self._moving_links
-            if ours_a or ours_b:
-                self.in_collision = True
-                return
-
-    def _ref_to_world(self, xyz: np.ndarray) -> np.ndarray:
+    # -- objects and frames ---------------------------------------------------------------------
+    def _object_to_world(self, xyz: np.ndarray) -> np.ndarray:
         base_link = xyz * _ROT_Z_PI if self.config.reference_frame == "base" else xyz
         return base_link + np.array([0.0, 0.0, BASE_LINK_HEIGHT])
 
     # -- state ----------------------------------------------------------------------------------
-    def set_state(self, request: StateRequest) -> None:
-        goal = self._joint_goal(request)
-        trajectories, rng = self._object_trajectories(request)
-        # Everything is validated: from here on nothing can fail.
-        self._rng = rng
-        self._controller.reset(goal)
-        self._last_command = None
-        self._joints_stale = True
-        for i, trajectory in enumerate(trajectories):
-            if trajectory is not None:
-                self._objects[i] = trajectory
-        self._object_start = self.time
-        self._update_objects(force=True)
-        self.in_collision = False
-        self._check_collision()
-
     def _joint_goal(self, request: StateRequest) -> np.ndarray:
         """The validated joint goal (env order) of a SetState."""
-        unknown = [k for k in request.state_dict if k not in ALL_KEYS]
-        if unknown:
-            # Quoted in part: the message goes into the reply and the log (see validation).
-            raise InvalidStateError(
-                f"unknown UR state_dict keys {preview(unknown)}; known: {len(ALL_KEYS)} keys "
-                f"such as {POSITION_KEYS[0]!r}"
-            )
+        check_state_keys("UR", request.state_dict, ALL_KEYS, POSITION_KEYS[0])
         missing = [k for k in POSITION_KEYS if k not in request.state_dict]
         if not missing:
             goal = np.array([float(request.state_dict[k]) for k in POSITION_KEYS])
@@ -271,19 +156,7 @@ class URArm(SimRobot):
                 )
         return goal
 
-    def _object_trajectories(
-        self, request: StateRequest
-    ) -> tuple[list[ObjectTrajectory | None], np.random.Generator]:
-        """Build the requested trajectories with a copy of the RNG, committed only on success."""
-        rng = copy.deepcopy(self._rng)
-        trajectories = [
-            build_trajectory(i, request.string_params, request.float_params, rng)
-            for i in range(len(self._objects))
-        ]
-        return trajectories, rng
-
-    def read_sensors(self, groups: Iterable[str] | None = None) -> dict[str, np.ndarray]:
-        wanted = self.groups if groups is None else tuple(groups)
+    def _arm_sensors(self, wanted: Sequence[str]) -> dict[str, np.ndarray]:
         out: dict[str, np.ndarray] = {}
         if "joints" in wanted:
             out["joints"] = np.concatenate([self._controller.position, self._controller.velocity])
@@ -293,12 +166,6 @@ class URArm(SimRobot):
             for name, state in zip(("ee", "forearm"), states, strict=True):
                 if name in wanted:
                     out[name] = self._pose_in_ref(state[4], state[5])
-        if "collision" in wanted:
-            out["collision"] = np.array([1.0 if self.in_collision else 0.0])
-        t = self.time - self._object_start
-        for i, trajectory in enumerate(self._objects):
-            if f"object_{i}" in wanted:
-                out[f"object_{i}"] = np.concatenate([trajectory.position(t), [0.0, 0.0, 0.0, 1.0]])
         return out
 
     def _pose_in_ref(self, world_xyz, quat_xyzw) -> np.ndarray:
@@ -312,11 +179,3 @@ class URArm(SimRobot):
 
     def compose(self, groups: Mapping[str, np.ndarray]) -> StateSnapshot:
         return compose_state(self.config.rs_mode, groups)
-
-    @property
-    def joint_positions(self) -> np.ndarray:
-        """Current joint positions (rad), env order (a copy)."""
-        return self._controller.position.copy()
-
-    def close(self) -> None:
-        self._world.close()

@@ -20,23 +20,13 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from robogym_ray.robots.base import StateSnapshot
+from robogym_ray.robots.base import StateSnapshot, pose_keys
 from robogym_ray.robots.ur.geometry import ROS_FROM_ENV
 
 JOINT_KEYS: tuple[str, ...] = ("base", "shoulder", "elbow", "wrist_1", "wrist_2", "wrist_3")
 """state_dict joint name stems in env order (``base`` = shoulder_pan, ``shoulder`` = lift)."""
 POSITION_KEYS = tuple(f"{k}_joint_position" for k in JOINT_KEYS)
 VELOCITY_KEYS = tuple(f"{k}_joint_velocity" for k in JOINT_KEYS)
-_POSE_SUFFIXES = (
-    "translation_x", "translation_y", "translation_z",
-    "rotation_x", "rotation_y", "rotation_z", "rotation_w",
-)  # fmt: skip
-
-
-def pose_keys(frame: str) -> tuple[str, ...]:
-    return tuple(f"{frame}_to_ref_{s}" for s in _POSE_SUFFIXES)
-
-
 _ROBOT_KEYS = POSITION_KEYS + VELOCITY_KEYS + pose_keys("ee") + ("in_collision",)
 RS_MODE_KEYS: dict[str, tuple[str, ...]] = {
     "only_robot": _ROBOT_KEYS,
