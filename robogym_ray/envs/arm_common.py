@@ -92,6 +92,31 @@ class ArmTask(RobotServerEnv):
             )
         return msg
 
+    # -- actions as joint targets -----------------------------------------------------------
+    active: np.ndarray
+    """Mask (task order) of the joints the action moves; the others stay at their start."""
+
+    def joint_targets(self, action: np.ndarray) -> np.ndarray:
+        """The joint targets (rad, task order) this env sends for ``action`` now."""
+        raise NotImplementedError
+
+    def action_for(self, joints: np.ndarray) -> np.ndarray:
+        """The action whose targets are ``joints`` (rad, task order), for the env as it is now.
+
+        Commanding a joint configuration is not ``joints / limits`` in every task (robo-gym's
+        positioning env maps wrist_1 onto [-3.48, 0.31] rad; the avoidance tasks add the action
+        to a reference): this inverts the env's own map. Fixed joints' entries are ignored (they
+        stay where the reset put them); values outside [-1, 1] mean the env cannot reach them.
+        """
+        q = np.asarray(joints, dtype=np.float64).reshape(-1)
+        if q.shape != self.start_joints.shape:
+            raise ValueError(f"action_for needs {self.start_joints.size} joints, got {q.size}")
+        # Every task's map is affine per joint: two evaluations give offset and slope.
+        n = int(np.count_nonzero(self.active))
+        offset = self.joint_targets(np.zeros(n))[self.active]
+        slope = self.joint_targets(np.ones(n))[self.active] - offset
+        return ((q[self.active] - offset) / slope).astype(np.float32)
+
     # -- reading a state -------------------------------------------------------------------
     def joints(self, msg: pb.State) -> np.ndarray:
         """Joint positions (rad), the task's order."""

@@ -103,11 +103,14 @@ class PandaTask(ArmTask):
         goal = {k: float(q) for k, q in zip(POSITION_KEYS, joints, strict=True)}
         return self._set_joint_goal(client, goal, joints, string_params, float_params)
 
-    def _send(self, client: RobotServerClient, action: np.ndarray) -> pb.State:
+    def joint_targets(self, action: np.ndarray) -> np.ndarray:
         """Active joints from ``action``, fixed ones at their start; denormalised to rad."""
         full = normalize(self.start_joints)
         full[self.active] = action
-        return self.checked(client.send_action_get_state(denormalize(full)))
+        return denormalize(full)
+
+    def _send(self, client: RobotServerClient, action: np.ndarray) -> pb.State:
+        return self.checked(client.send_action_get_state(self.joint_targets(action)))
 
     # -- reading a state -------------------------------------------------------------------
     def joint_obs(self, msg: pb.State) -> np.ndarray:

@@ -65,10 +65,12 @@ class _AvoidanceTask(URTask):
         """Joint positions (env order, rad) the action is a delta from."""
         return self.start_joints
 
+    def joint_targets(self, action: np.ndarray) -> np.ndarray:
+        """The reference plus the action (rad, un-scaled), fixed joints at the reference."""
+        return self.reference() + self.full_action(action, np.zeros(6))
+
     def _send(self, client: RobotServerClient, action: np.ndarray) -> pb.State:
-        return self.send_joint_targets(
-            client, self.reference() + self.full_action(action, np.zeros(6))
-        )
+        return self.send_joint_targets(client, self.joint_targets(action))
 
     def _base_obs(self, msg: pb.State) -> list[np.ndarray]:
         """Object in the ee frame (3), normalised joints (6), their offset from the reference."""

@@ -109,6 +109,10 @@ class URTask(ArmTask):
         state_dict.update(zip(POSITION_KEYS, (float(q) for q in joints), strict=True))
         return self._set_joint_goal(client, state_dict, joints, string_params, float_params)
 
+    def joint_targets(self, action: np.ndarray) -> np.ndarray:
+        """robo-gym's UR map: the action times the limits, fixed joints at their start."""
+        return self.full_action(action, normalize_joints(self.start_joints)) * JOINT_MAX
+
     def send_joint_targets(self, client: RobotServerClient, q_env: np.ndarray) -> pb.State:
         """Absolute joint targets (rad, env order) through SendActionGetState (ROS order)."""
         return self.checked(client.send_action_get_state(to_ros(q_env)))

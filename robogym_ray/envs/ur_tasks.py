@@ -146,8 +146,7 @@ class EndEffectorPositioningUR(_TargetTask):
         self.observation_space = box([-np.inf] * 3 + low, [np.inf] * 3 + high)
 
     def _send(self, client: RobotServerClient, action: np.ndarray) -> pb.State:
-        targets = self.full_action(action, normalize_joints(self.start_joints)) * JOINT_MAX
-        return self.send_joint_targets(client, targets)
+        return self.send_joint_targets(client, self.joint_targets(action))
 
     def _to_obs(self, msg: pb.State) -> np.ndarray:
         sd = msg.state_dict
@@ -175,7 +174,8 @@ class EndEffectorPositioningRoboGymUR(_TargetTask):
     ## Action space
     ``Box(-1, 1, (5,), float32)`` by default (wrist_3 fixed at its reset position): normalised
     absolute joint targets; wrist_1 is restricted: ``(a + 1) / 2 * 3.79 - 3.48`` rad in
-    [-3.48, 0.31].
+    [-3.48, 0.31]. So the action for joints ``q`` is not ``q`` over the limits: use
+    ``action_for(q)`` (and ``joint_targets(action)`` for the other way).
 
     ## Observation space
     ``Box((27,), float32)``: target in the end-effector frame ``[r, theta, phi]`` (3, free),
@@ -212,12 +212,16 @@ class EndEffectorPositioningRoboGymUR(_TargetTask):
         self.previous_action = np.zeros(6)
         return super()._reset_server(client, options)
 
-    def _send(self, client: RobotServerClient, action: np.ndarray) -> pb.State:
+    def joint_targets(self, action: np.ndarray) -> np.ndarray:
+        """As every UR task's, but wrist_1 on [-3.48, 0.31] rad (robo-gym's restrict_wrist_1)."""
         full = self.full_action(action, normalize_joints(self.start_joints))
-        self.previous_action = full
         targets = full * JOINT_MAX
         targets[3] = (full[3] + 1.0) / 2.0 * (0.31 + 3.48) - 3.48
-        return self.send_joint_targets(client, targets)
+        return targets
+
+    def _send(self, client: RobotServerClient, action: np.ndarray) -> pb.State:
+        self.previous_action = self.full_action(action, normalize_joints(self.start_joints))
+        return self.send_joint_targets(client, self.joint_targets(action))
 
     def _to_obs(self, msg: pb.State) -> np.ndarray:
         sd = msg.state_dict
@@ -282,8 +286,7 @@ class EmptyEnvironmentUR(URTask):
         return self.set_joints(client, start)
 
     def _send(self, client: RobotServerClient, action: np.ndarray) -> pb.State:
-        targets = self.full_action(action, normalize_joints(self.start_joints)) * JOINT_MAX
-        return self.send_joint_targets(client, targets)
+        return self.send_joint_targets(client, self.joint_targets(action))
 
     def _to_obs(self, msg: pb.State) -> np.ndarray:
         return np.concatenate([normalize_joints(self.joints(msg)), self.velocities(msg)]).astype(

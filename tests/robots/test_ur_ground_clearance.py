@@ -17,10 +17,14 @@ the URDF's kinematics and the base at z = 0.1 m, measured for this test:
 Gazebo's collision there comes from its dynamics, not the geometry: robo-gym's effort
 controllers let the arm sag under gravity (a 0.011 rad shoulder_lift error alone closes the
 13 mm) and latch any contact on the way. Our controller is kinematic (docs/protocol.md), so
-the arm is where it was sent. These tests pin our geometry to the meshes' margin.
+the arm is where it was sent. These tests pin our geometry to the meshes' margin. To command a
+joint configuration, use the env's own inverse: ``env.unwrapped.action_for(joints)``.
 """
 
 from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import pytest
@@ -65,27 +69,29 @@ def test_the_sanity_pose_is_in_the_ground_as_the_meshes_are() -> None:
     assert _collides(q)
 
 
-def _run(task: str, action: np.ndarray) -> tuple[str, int]:
+def _run(task: str, action_of: Callable[[Any], np.ndarray]) -> str:
     import gymnasium as gym
 
     env = gym.make(env_id(task, "UR10", "Sim"), ur_model="ur10e")
     try:
         env.reset(seed=0)
-        for t in range(1, 301):
-            _, _, terminated, truncated, info = env.step(action.astype(np.float32))
+        action = action_of(env.unwrapped).astype(np.float32)
+        for _ in range(300):
+            _, _, terminated, truncated, info = env.step(action)
             if terminated or truncated:
-                return info["final_status"], t
+                return str(info["final_status"])
         raise AssertionError("no end in 300 steps")
     finally:
         env.close()
 
 
 def test_the_two_envs_differ_by_the_wrist_1_mapping_only() -> None:
-    q = np.array([-2.14, -0.13, 0.63, -1.13, 1.63])
-    normalised = q / JOINT_MAX[:5]  # what the report sent to both envs
-    assert _run("EmptyEnvironment", normalised)[0] == "collision"
-    assert _run("EndEffectorPositioningRoboGym", normalised)[0] == "max_steps_exceeded"
-    # The positioning env's own inverse of wrist_1's mapping sends the arm to -1.13: it collides.
-    inverse = normalised.copy()
-    inverse[3] = (q[3] + 3.48) / (0.31 + 3.48) * 2.0 - 1.0
-    assert _run("EndEffectorPositioningRoboGym", inverse)[0] == "collision"
+    q = np.array([-2.14, -0.13, 0.63, -1.13, 1.63, 0.0])
+
+    def normalised(_task: Any) -> np.ndarray:  # what the report sent to both envs
+        return q[:5] / JOINT_MAX[:5]
+
+    assert _run("EmptyEnvironment", normalised) == "collision"
+    assert _run("EndEffectorPositioningRoboGym", normalised) == "max_steps_exceeded"
+    # The env's own inverse (action_for) sends the positioning arm to -1.13 too: it collides.
+    assert _run("EndEffectorPositioningRoboGym", lambda task: task.action_for(q)) == "collision"
