@@ -127,6 +127,7 @@ class Supervisor:
         owner: str = "user",
         keep_port: bool = False,
         reap_idle: bool = False,
+        holder: str = "",
     ) -> dict[str, Any]:
         """Start a supervised server; returns its info once it answers GetState.
 
@@ -136,6 +137,8 @@ class Supervisor:
         before reconnecting, so a new address is served sooner.
         ``reap_idle``: stop it once idle for ``idle_timeout_s`` (for clients that may vanish
         without stopping their server, like robo-gym's through the ServerManager).
+        ``holder``: who leases it (``owner="lease"``), entered with it so that a concurrent
+        ``release_holder`` never sees a leased server without its holder.
         """
         sid = f"{spec.robot}-{next(self._ids)}"
         try:
@@ -147,7 +150,7 @@ class Supervisor:
         book = RestartBook(self.config.restart, name=f"robot server {sid} ({spec.robot})")
         entry = ManagedServer(
             sid, spec, owner, book, server, leased=owner == "lease", keep_port=keep_port,
-            reap_idle=reap_idle,
+            reap_idle=reap_idle, holder=holder,
         )  # fmt: skip
         with self._table_lock:
             self._servers[sid] = entry
@@ -166,15 +169,14 @@ class Supervisor:
                 ):
                     entry.leased, entry.holder = True, holder
                     return entry.info()
-        info = self.start_server(spec, owner="lease")
-        self._servers[info["id"]].holder = holder
-        return {**info, "holder": holder}
+        return self.start_server(spec, owner="lease", holder=holder)
 
     def release(self, server_id: str) -> None:
         """End a lease; the server stays up for the next ``acquire``."""
-        entry = self._servers.get(server_id)
-        if entry is not None:
-            entry.leased, entry.holder = False, ""
+        with self._table_lock:  # as acquire: a lease changes hands under the table's lock
+            entry = self._servers.get(server_id)
+            if entry is not None:
+                entry.leased, entry.holder = False, ""
 
     def release_holder(self, holder: str) -> int:
         """End every lease ``holder`` has (its process died without releasing); returns how
