@@ -102,7 +102,7 @@ def _loopback_only(address: str) -> bool:
     host, _, port = address.rpartition(":")
     if host.strip("[]") not in ("127.0.0.1", "localhost", "::1") or not port.isdigit():
         return False
-    routable = ray.util.get_node_ip_address()  # before ray.init: this machine's routable IP
+    routable = routable_ip()
     if routable == LOOPBACK:
         return False
     try:
@@ -110,3 +110,15 @@ def _loopback_only(address: str) -> bool:
             return False  # a Ray listening on every interface: join it the usual way
     except OSError:
         return True
+
+
+def routable_ip() -> str:
+    """The address this machine reaches other hosts from (127.0.0.1 without a network)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        try:
+            # The address Ray rewrites 127.0.0.1 to is found the same way; UDP connect sends
+            # nothing, it only picks the outgoing route.
+            probe.connect(("8.8.8.8", 53))
+            return str(probe.getsockname()[0])
+        except OSError:
+            return LOOPBACK

@@ -134,3 +134,21 @@ def test_plain_ray_init_listens_on_every_interface() -> None:
     seen = _listeners_of("plain")
     exposed = [ip for ip, _ in seen["listeners"] if not _is_loopback(ip)]
     assert exposed, seen
+
+
+def test_join_ray_takes_the_loopback_road_only_for_a_loopback_only_listener() -> None:
+    import socket
+
+    from robogym_ray.distributed.local_ray import _loopback_only, routable_ip
+
+    if routable_ip() == "127.0.0.1":
+        pytest.skip("this machine has no routable address to tell the two apart")
+    assert not _loopback_only("10.0.0.5:6379")  # a cluster elsewhere: Ray's usual road
+    assert not _loopback_only("auto")
+    for bind, loopback_only in (("127.0.0.1", True), ("0.0.0.0", False)):
+        with socket.socket() as listener:
+            listener.bind((bind, 0))
+            listener.listen()
+            port = listener.getsockname()[1]
+            assert _loopback_only(f"127.0.0.1:{port}") is loopback_only, bind
+            assert _loopback_only(f"localhost:{port}") is loopback_only, bind
