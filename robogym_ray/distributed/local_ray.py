@@ -25,7 +25,7 @@ import logging
 import os
 import socket
 from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import contextmanager, nullcontext
 from typing import Any
 
 import ray
@@ -90,10 +90,7 @@ def join_ray(address: str, **init_kwargs: Any) -> None:
         if lookup is not None:
             with _single_node_addresses():
                 address = lookup(address) or address
-    if _loopback_only(address):
-        with _single_node_addresses():
-            ray.init(address=address, **init_kwargs)
-    else:
+    with _single_node_addresses() if _loopback_only(address) else nullcontext():
         ray.init(address=address, **init_kwargs)
 
 

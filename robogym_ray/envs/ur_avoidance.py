@@ -69,9 +69,6 @@ class _AvoidanceTask(URTask):
         """The reference plus the action (rad, un-scaled), fixed joints at the reference."""
         return self.reference() + self.full_action(action, np.zeros(6))
 
-    def _send(self, client: RobotServerClient, action: np.ndarray) -> pb.State:
-        return self.send_joint_targets(client, self.joint_targets(action))
-
     def _base_obs(self, msg: pb.State) -> list[np.ndarray]:
         """Object in the ee frame (3), normalised joints (6), their offset from the reference."""
         sd = msg.state_dict

@@ -113,6 +113,10 @@ class URTask(ArmTask):
         """robo-gym's UR map: the action times the limits, fixed joints at their start."""
         return self.full_action(action, normalize_joints(self.start_joints)) * JOINT_MAX
 
+    def _send(self, client: RobotServerClient, action: np.ndarray) -> pb.State:
+        """The targets of ``joint_targets`` (every UR task's map from actions to joints)."""
+        return self.send_joint_targets(client, self.joint_targets(action))
+
     def send_joint_targets(self, client: RobotServerClient, q_env: np.ndarray) -> pb.State:
         """Absolute joint targets (rad, env order) through SendActionGetState (ROS order)."""
         return self.checked(client.send_action_get_state(to_ros(q_env)))

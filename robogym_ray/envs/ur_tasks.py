@@ -145,9 +145,6 @@ class EndEffectorPositioningUR(_TargetTask):
         low, high = joint_obs_bounds(6, 6)
         self.observation_space = box([-np.inf] * 3 + low, [np.inf] * 3 + high)
 
-    def _send(self, client: RobotServerClient, action: np.ndarray) -> pb.State:
-        return self.send_joint_targets(client, self.joint_targets(action))
-
     def _to_obs(self, msg: pb.State) -> np.ndarray:
         sd = msg.state_dict
         target = self.target if self.target_frame == "base" else in_frame(sd, self.target, "ee")
@@ -221,7 +218,7 @@ class EndEffectorPositioningRoboGymUR(_TargetTask):
 
     def _send(self, client: RobotServerClient, action: np.ndarray) -> pb.State:
         self.previous_action = self.full_action(action, normalize_joints(self.start_joints))
-        return self.send_joint_targets(client, self.joint_targets(action))
+        return super()._send(client, action)
 
     def _to_obs(self, msg: pb.State) -> np.ndarray:
         sd = msg.state_dict
@@ -284,9 +281,6 @@ class EmptyEnvironmentUR(URTask):
         joints = options.get("joint_positions")
         start = np.array(self.reset_joints if joints is None else joints, dtype=np.float64)
         return self.set_joints(client, start)
-
-    def _send(self, client: RobotServerClient, action: np.ndarray) -> pb.State:
-        return self.send_joint_targets(client, self.joint_targets(action))
 
     def _to_obs(self, msg: pb.State) -> np.ndarray:
         return np.concatenate([normalize_joints(self.joints(msg)), self.velocities(msg)]).astype(

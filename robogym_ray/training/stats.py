@@ -33,6 +33,11 @@ class WorkerSlot:
     """``time.perf_counter()`` when its running ``collect`` call was sent."""
 
 
+def no_restarts() -> Counter[str]:
+    """A zero count for every ``FaultCause`` (so scalars and summaries list every cause)."""
+    return Counter({cause.value: 0 for cause in FaultCause})
+
+
 @dataclass
 class RunStats:
     """Counters of one run; ``statuses`` and ``returns`` keep the last 100 episodes."""
@@ -54,9 +59,7 @@ class RunStats:
     revisits: int = 0
     revisit_statuses: deque[str] = field(default_factory=lambda: deque(maxlen=100))
     returns: deque[float] = field(default_factory=lambda: deque(maxlen=100))
-    restarts: Counter[str] = field(
-        default_factory=lambda: Counter({cause.value: 0 for cause in FaultCause})
-    )
+    restarts: Counter[str] = field(default_factory=no_restarts)
     """Rebuilds of in-process simulations by cause, as the workers reported them, plus workers
     killed past their deadline (``hung``). The gRPC path's server restarts are the supervisor's
     count: ``all_restarts`` adds them."""
@@ -93,7 +96,7 @@ def record(stats: RunStats, result: RolloutResult) -> list[Episode]:
 def all_restarts(stats: RunStats, supervisor: Mapping[str, int]) -> dict[str, int]:
     """Every restart of the run by cause: the supervisor's robot servers (gRPC path), the
     in-process simulations and the workers killed as hung (``stats.restarts``)."""
-    total = Counter({cause.value: 0 for cause in FaultCause})
+    total = no_restarts()
     total.update(supervisor)
     total.update(stats.restarts)
     return dict(total)

@@ -104,16 +104,17 @@ ray.shutdown()
 
 
 def _listeners_of(mode: str) -> dict:
-    temp_dir = tempfile.mkdtemp(prefix="rgl", dir="/tmp")  # short: Ray's socket paths
     env = {**os.environ, "RAY_ADDRESS": ""}
     env.pop("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", None)
-    done = subprocess.run(
-        [sys.executable, "-c", _CHILD, mode, temp_dir],
-        capture_output=True,
-        text=True,
-        timeout=180,
-        env=env,
-    )
+    # A short path under /tmp (Ray's socket paths), removed with the session's files after.
+    with tempfile.TemporaryDirectory(prefix="rgl", dir="/tmp") as temp_dir:
+        done = subprocess.run(
+            [sys.executable, "-c", _CHILD, mode, temp_dir],
+            capture_output=True,
+            text=True,
+            timeout=180,
+            env=env,
+        )
     assert done.returncode == 0, done.stderr[-3000:]
     return json.loads(done.stdout.strip().splitlines()[-1])
 
