@@ -26,7 +26,9 @@ class EvalSchedule:
         self.weights_ref: Any = None
         self.next_at = 0.0
 
-    def start(self) -> Any:
+    def start(self, episodes: int = 1) -> Any:
+        """Start a call of ``episodes`` greedy episodes (a selector's own count when it has
+        one); the call in flight, or None without an evaluator."""
         evaluator = self.p.evaluator
         if evaluator is None:
             return None
@@ -38,7 +40,7 @@ class EvalSchedule:
             # The same episodes for every snapshot: seeds the workers and `evaluate` never use.
             n, base = self.cfg.select_episodes, self.cfg.seed + 20_000
             return evaluator.evaluate.remote(self.weights_ref, n, base)
-        return evaluator.evaluate.remote(self.weights_ref)
+        return evaluator.evaluate.remote(self.weights_ref, episodes)
 
     def poll(self, ref: Any, logger: Any, wall_s: float) -> Any:
         """Take a finished call's result and start the next when due; the call in flight."""
@@ -47,6 +49,28 @@ class EvalSchedule:
             return self.start() if due else None
         if not ray.wait([ref], timeout=0)[0]:
             return ref
+        self._take(ref, logger, wall_s)
+        return self.poll(None, logger, wall_s)
+
+    def final(self, ref: Any, logger: Any, wall_s: float) -> None:
+        """Every run ends with an evaluation: the call in flight is waited for, and when the
+        evaluator has finished no episode yet (a short run, or a slow machine), the final
+        policy plays ``final_eval_episodes`` greedy episodes now, so ``eval/*`` and the
+        summary always have rates. ``eval_final_episodes`` says which it was: the episodes
+        of that final call, 0 when the rates are the evaluator's running window."""
+        if ref is not None:
+            self._take(ref, logger, wall_s)
+        if self.p.evaluator is None:
+            return
+        final_episodes = 0
+        if not self.stats.eval:
+            final_episodes = self.cfg.final_eval_episodes
+            self._take(self.start(final_episodes), logger, wall_s)
+        if self.stats.eval:  # empty only when that call was lost with its actor
+            self.stats.eval["eval_final_episodes"] = float(final_episodes)
+
+    def _take(self, ref: Any, logger: Any, wall_s: float) -> None:
+        """Record a call's result (blocks until it is done): rates, history, GIF, snapshot."""
         try:
             self.stats.eval = ray.get(ref)
             if (gif := self.stats.eval.pop(VIDEO_KEY, None)) is not None:
@@ -64,8 +88,6 @@ class EvalSchedule:
             else:
                 log.warning("evaluator failed; evaluation stops")
                 self.p.evaluator = None
-            return None
-        return self.poll(None, logger, wall_s)
 
     def _evaluator_alive(self) -> bool:
         try:

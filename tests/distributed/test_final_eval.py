@@ -1,0 +1,67 @@
+"""Every run ends with an evaluation of its final policy (``EvalSchedule.final``).
+
+A short run on a busy machine can end before the evaluator has finished one episode; the run's
+summary and TensorBoard must still carry ``eval/*``. Which case a run hits depends on the
+machine's speed, so each case is driven here on the real program's actors directly.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import ray
+
+from robogym_ray.robots.emulation import EmulationConfig
+from robogym_ray.training.config import TrainConfig
+from robogym_ray.training.evals import EvalSchedule
+from robogym_ray.training.logger import RunLogger
+from robogym_ray.training.presets import d4pg_for, resolve_task
+from robogym_ray.training.program import Program
+from robogym_ray.training.stats import RunStats
+
+pytestmark = [pytest.mark.ray, pytest.mark.slow, pytest.mark.usefixtures("ray_cluster")]
+
+NAV = "RoboGymRay/ObstacleAvoidanceMir100Sim-v0"
+
+
+def test_a_run_whose_evaluator_finished_nothing_evaluates_its_final_policy(
+    tmp_path: Path,
+) -> None:
+    cfg = TrainConfig(
+        task=NAV, workers=1, total_steps=1000, logdir=str(tmp_path), run_name="final",
+        progress=False, final_eval_episodes=3,
+    )  # fmt: skip
+    preset = resolve_task(cfg.task)
+    program = Program(cfg, d4pg_for(preset, None), preset, EmulationConfig())
+    logger = RunLogger(program.run_dir, total=cfg.total_steps, progress=False)
+    try:
+        run_stats = RunStats()
+        schedule = EvalSchedule(program, run_stats)
+        # The end of a run whose evaluator has no result yet and no call in flight.
+        schedule.final(None, logger, wall_s=1.0)
+        first = dict(run_stats.eval)
+        assert first["eval_final_episodes"] == 3
+        assert first["eval_episodes"] == 3  # the evaluator's own count: it played them
+        rates = [first[f"eval_{k}_rate"] for k in ("success", "collision", "timeout")]
+        assert all(0.0 <= r <= 1.0 for r in rates) and sum(rates) == pytest.approx(1.0)
+        assert [e["wall_s"] for e in run_stats.eval_history] == [1.0]
+
+        # A call still in flight at the end is waited for, and its window stands: no extra
+        # final episodes are played.
+        in_flight = schedule.start()
+        schedule.final(in_flight, logger, wall_s=2.0)
+        assert run_stats.eval["eval_final_episodes"] == 0
+        assert run_stats.eval["eval_episodes"] == 4
+        assert len(run_stats.eval_history) == 2
+    finally:
+        logger.close()
+        program.shutdown()
+    assert ray.is_initialized()
+
+
+def test_the_final_evaluation_needs_at_least_one_episode() -> None:
+    from robogym_ray.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="final_eval_episodes"):
+        TrainConfig(task=NAV, final_eval_episodes=0)
