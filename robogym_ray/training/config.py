@@ -106,6 +106,10 @@ class TrainConfig:
     """Seconds from the start of one evaluator call to the start of the next (0 = back to
     back). On 2 cores a back-to-back evaluator costs the learner 15-20 percent of its steps
     (docs/benchmarks.md); an interval bounds that share."""
+    final_eval_episodes: int = 10
+    """Greedy episodes the final policy plays at the end of a run in which the evaluator
+    finished none (a short run, or a busy machine), so every run's summary and eval/* have
+    rates. A run whose evaluator finished episodes reports its last window instead."""
     video_interval_s: float = 300.0
     """Every this many seconds the evaluator films one greedy episode (320x240, drawn from
     the robot state) into TensorBoard's eval/video, as an animated GIF. 0 = no video."""
@@ -163,6 +167,7 @@ class TrainConfig:
             (self.worker_deadline_s > 0, "worker_deadline_s", "> 0"),
             (self.select_episodes >= 0, "select_episodes", ">= 0"),
             (self.eval_interval_s >= 0, "eval_interval_s", ">= 0"),
+            (self.final_eval_episodes >= 1, "final_eval_episodes", ">= 1"),
             (self.real_robot_wait_s >= 0, "real_robot_wait_s", ">= 0"),
             (self.replay_snapshot_every_s >= 0, "replay_snapshot_every_s", ">= 0"),
             (self.video_interval_s >= 0, "video_interval_s", ">= 0"),

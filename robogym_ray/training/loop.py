@@ -90,6 +90,7 @@ class TrainingLoop:
             if logger.due(cfg.log_every_s):  # scalars cost a supervisor round trip
                 logger.write(self._scalars(), self.stats.env_steps)
         self._drain_learner(learner_calls, block=True, all_=True)
+        self.evals.final(eval_ref, logger, self._wall())  # the final policy, always evaluated
         return finish(self.p, self.stats, logger, self._scalars, self._wall)
 
     def _done(self, in_flight: int = 0) -> bool:
