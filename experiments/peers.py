@@ -116,6 +116,7 @@ def evaluate(run_dir: Path, episodes: int = 100, seed: int = 1000) -> list[dict[
     import robogym_ray  # noqa: F401 - registers the ids
     from robogym_ray.envs import outcomes
     from robogym_ray.evaluation import run_episodes
+    from robogym_ray.learner.behaviour import from_env_action
 
     record = json.loads((run_dir / "run.json").read_text())
     algo_class = _sb3_class(record["algo"])
@@ -129,8 +130,7 @@ def evaluate(run_dir: Path, episodes: int = 100, seed: int = 1000) -> list[dict[
 
             def policy(obs: np.ndarray, model: Any = model) -> np.ndarray:
                 # SB3 answers in the env's units; run_episodes takes [-1, 1].
-                action = model.predict(obs, deterministic=True)[0]
-                return 2.0 * (action - low) / (high - low) - 1.0
+                return from_env_action(model.predict(obs, deterministic=True)[0], low, high)
 
             statuses = [e.final_status for e in run_episodes(policy, env, episodes, seed)]
             curve.append({**snap, "episodes": episodes, **outcomes.rates(statuses)})

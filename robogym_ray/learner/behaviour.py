@@ -56,3 +56,9 @@ class BehaviourPolicy:
 def to_env_action(action: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
     """Map an action in [-1, 1] affinely onto the Box ``[low, high]``."""
     return low + (action + 1.0) * 0.5 * (high - low)
+
+
+def from_env_action(action: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
+    """The inverse of ``to_env_action``: an action in the Box's units onto [-1, 1] (for
+    policies that answer in the env's units, e.g. Stable-Baselines3's ``predict``)."""
+    return 2.0 * (np.asarray(action) - low) / (high - low) - 1.0

@@ -9,7 +9,7 @@ import pytest
 import torch
 
 from robogym_ray.errors import ConfigError
-from robogym_ray.learner.behaviour import BehaviourPolicy, to_env_action
+from robogym_ray.learner.behaviour import BehaviourPolicy, from_env_action, to_env_action
 from robogym_ray.learner.config import D4PGConfig
 from robogym_ray.learner.learner import D4PGLearner
 
@@ -89,6 +89,9 @@ def test_weights_reach_the_actor_and_actions_are_bounded() -> None:
         to_env_action(np.array([-1.0, 1.0]), np.array([-2.0, 0.0]), np.array([2.0, 4.0])),
         [-2.0, 4.0],
     )
+    low, high = np.array([-2.0, 0.0]), np.array([2.0, 4.0])
+    a = np.array([0.3, -0.7])
+    np.testing.assert_allclose(from_env_action(to_env_action(a, low, high), low, high), a)
 
 
 def test_initial_priorities_are_positive_per_sample_losses() -> None:
