@@ -3,7 +3,7 @@
 Evaluations seed each episode (``robogym-ray evaluate --seed``), so two policies evaluated on
 the same seeds met the same start and goal: their difference is best read from the episodes
 where exactly one of them succeeded (an exact McNemar test), not from two independent rates.
-``experiments/compare.py`` is the command line; ``docs/results.md`` quotes its output.
+``experiments/compare.py`` is the command line; ``docs/results-log.md`` quotes its output.
 """
 
 from __future__ import annotations

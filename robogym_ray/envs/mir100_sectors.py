@@ -4,7 +4,7 @@ Why: robo-gym's ObstacleAvoidance observation keeps 16 of the 1012 laser ranges,
 beams (~34 degrees of a scanner's sweep, at 0.5 degrees per beam) apart. A cube edge or a
 narrow gap between two cubes can fall between two kept beams, so the policy may read a gap as
 open that the 0.40 m footprint rule closes. The policies trained on it fail mostly such starts
-(``docs/results.md``, "Where navigation fails"). This variant keeps the task (scene, resets,
+(``docs/results-log.md``, "Where navigation fails"). This variant keeps the task (scene, resets,
 reward, collision rules, episode ends) and the meaning of each observation index: value ``i``
 is the *nearest* return among the beams around robo-gym's beam ``i``, instead of that one
 beam's range. A real MiR100 gives the same 1012 ranges, so the Rob variant needs nothing more.

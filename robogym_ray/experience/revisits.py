@@ -3,7 +3,7 @@
 Why: a policy's failures concentrate on a few hard starts. Five navigation policies of one
 seed (four recipes) each failed 10-13 of the same 300 evaluation episodes; two episodes were
 failed by all five and seven by at least three, where independent failures would give about
-0.15 (``docs/results.md``, ``experiments/compare.py --policy``). Uniform resets show the
+0.15 (``docs/results-log.md``, ``experiments/compare.py --policy``). Uniform resets show the
 policy such a start about as rarely as the evaluation does. This is a small form of
 prioritized level replay (Jiang et al., 2021). The "level" is the reset seed: the Sim envs draw
 start, goal and obstacles from the seed given to ``reset``, so the same seed gives the same

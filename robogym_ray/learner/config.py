@@ -64,7 +64,7 @@ class D4PGConfig:
     """If > 0, also keep a Polyak average of the online policy (moved this fraction of the way
     every learner step); the evaluator scores it, checkpoints store it as ``nets.policy_average``
     and ``evaluate`` / ``export`` use it by default. The workers still act with the online
-    policy. It damps the greedy policy's snapshot-to-snapshot swings (docs/results.md)."""
+    policy. It damps the greedy policy's snapshot-to-snapshot swings (docs/results-log.md)."""
     lr_decay_start: int = 0
     """Learner step at which both learning rates start to decay (with ``lr_decay_steps > 0``)."""
     lr_decay_steps: int = 0

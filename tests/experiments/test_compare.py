@@ -76,7 +76,7 @@ def test_pairs_by_seed_across_files_and_refuses_mismatches(tmp_path: Path) -> No
 def test_script_reproduces_the_documented_comparison(
     tmp_path: Path, capsys: pytest.CaptureFixture
 ) -> None:
-    # docs/results.md: (256, 256) vs (400, 300) nets, 300 simulation episodes: 284 / 6 / 6, p = 1.
+    # docs/results-log.md: (256, 256) vs (400, 300) nets, 300 simulation episodes: 284 / 6 / 6, p = 1.
     new, old = RESULTS / "navigation-average-256-100min", RESULTS / "navigation-average-100min"
     argv = [str(new / "sim"), str(new / "sim-1100"), "--vs", str(old / "sim"),
             str(old / "sim-1100"), "--json", str(tmp_path / "c.json")]  # fmt: skip
@@ -112,7 +112,7 @@ def test_shared_failures_count_policies_per_episode_against_independence(tmp_pat
 def test_script_lists_the_episodes_every_documented_navigation_policy_fails(
     tmp_path: Path, capsys: pytest.CaptureFixture
 ) -> None:
-    # docs/results.md: seeds 1053 and 1237 are failed by all five 100/120-minute policies.
+    # docs/results-log.md: seeds 1053 and 1237 are failed by all five 100/120-minute policies.
     runs = ["navigation-average-100min", "navigation-average-120min",
             "navigation-average-decay-100min", "navigation-average-256-100min",
             "navigation-average-256-quiet-100min"]  # fmt: skip
