@@ -9,7 +9,7 @@ episode-to-episode variance), and ``SnapshotSelector`` writes the best one's pol
 ``checkpoints/policy-best.pt``. Its score is selected on the evaluator's episodes, so it is
 optimistic: judge the kept policy on other seeds (``robogym-ray evaluate`` uses 1000+).
 
-Measured once, on MiR100 navigation (docs/results.md): 43 snapshots scored 0.84-0.96 on 100
+Measured once, on MiR100 navigation (docs/results-log.md): 43 snapshots scored 0.84-0.96 on 100
 episodes each; the kept one (0.96) scored 91.7 % on 300 held-out episodes, the run's final
 state 92.7 %. Among many snapshots of similar quality the maximum of 100-episode scores is
 mostly noise (the winner's curse); more episodes per snapshot make it worth more.
