@@ -18,7 +18,7 @@ Writing a card for a new robot (an example: ``robots/ur/card.py``, ``robots/mir1
         limits=Limits(names=(...7 joints...), lower=(...), upper=(...), velocity=(...)),
         safety=SafetyLimits(low=(...), high=(...)),           # None: no real robot behind it
         emulation=EmulationHooks(velocity_fields=("max_velocity_scale_factor",)),
-        geometry=Geometry(dh=(...)),                          # or footprint=(l, w, h) for a base
+        geometry=Geometry(dh=(...), ee_frames=("panda_hand", ...)),  # base: footprint=(l, w, h)
         launch=LaunchFamily("panda_robot_server.launch"),     # or with model_argument="..."
         state=StateLayout(length=..., slots=(StateSlot("joints", 0, 7), ...), keys=(...)),
         factory="robogym_ray.robots.panda.robot:make_panda",
@@ -137,7 +137,13 @@ class Geometry:
     footprint: tuple[float, float, float] | None = None
     """Bases: collision box (length, width, height) in m."""
     base_height: float = 0.0
-    """Height of the robot's base frame above the world floor (m)."""
+    """Height of the robot's base frame above the world origin (m), by default."""
+    base_height_option: str | None = None
+    """The launch argument that moves the base up or down (the UR's ``z``); None when the
+    launch file pins the base at ``base_height`` (the Panda's accepts ``z`` and ignores it)."""
+    ee_frames: tuple[str, ...] = ()
+    """Arms: the frames the ``ee_frame`` launch argument may name (the state's ``ee_to_ref_*``
+    pose), the launch file's default first."""
 
 
 @dataclass(frozen=True)
@@ -227,6 +233,8 @@ class RobotCard:
             raise ValueError(f"RobotCard {self.name}: kind {self.kind!r}, expected arm or base")
         if self.kind == "arm" and self.limits.position_range is None:
             raise ValueError(f"RobotCard {self.name}: an arm needs position limits")
+        if self.kind == "arm" and not self.geometry.ee_frames:
+            raise ValueError(f"RobotCard {self.name}: an arm names its end-effector frames")
         for path in (self.factory, self.option_parser):
             if path.count(":") != 1:
                 raise ValueError(f"RobotCard {self.name}: {path!r} is not 'module:attribute'")

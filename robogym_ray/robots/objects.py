@@ -129,6 +129,37 @@ def _spline_3d_ur5_workspace(p: Params, rng: np.random.Generator) -> np.ndarray:
     )
 
 
+FIXED_TRAJECTORIES = 50
+"""Ids 0-49 of ``fixed_trajectory`` (robo-gym's AvoidanceRaad2022Test cycles through 50)."""
+FIXED_TRAJECTORY_SEED = 2022
+"""Root of every fixed trajectory's seed: trajectory ``k`` is drawn from
+``SeedSequence([FIXED_TRAJECTORY_SEED, k])``, never from the server's RNG."""
+FIXED_TRAJECTORY_BOX = {
+    "x_min": -1.0, "x_max": 1.0, "y_min": -1.0, "y_max": 1.0, "z_min": 0.1, "z_max": 1.0,
+    "n_points": 10.0,
+}  # fmt: skip
+"""The spline box AvoidanceRaad2022 sends with ``3d_spline_ur5_workspace`` (m, reference
+frame); its lap of 8000-12000 samples is drawn per trajectory like the env draws it."""
+
+
+def _fixed_trajectory(p: Params, rng: np.random.Generator) -> np.ndarray:
+    # robo-gym reads 50 recorded splines from a JSON file of the ROS package; we draw ours the
+    # way AvoidanceRaad2022 asks for random ones, from a generator seeded by the id alone, so
+    # every server and every run serves the same trajectory for the same id (the server's
+    # ``rng`` is not touched).
+    trajectory_id = p["trajectory_id"]
+    if trajectory_id != int(trajectory_id):
+        raise InvalidStateError(
+            f"fixed_trajectory: trajectory_id {trajectory_id!r} is not an integer id "
+            f"(0-{FIXED_TRAJECTORIES - 1})"
+        )
+    own = np.random.Generator(
+        np.random.PCG64(np.random.SeedSequence([FIXED_TRAJECTORY_SEED, int(trajectory_id)]))
+    )
+    n_samples = float(int(own.uniform(8000, 12000)))
+    return _spline_3d_ur5_workspace({**FIXED_TRAJECTORY_BOX, "n_sampling_points": n_samples}, own)
+
+
 def _hold(point: np.ndarray, seconds: float) -> np.ndarray:
     return np.repeat(point[None, :], max(0, int(seconds * SAMPLE_RATE)), axis=0)
 
@@ -166,6 +197,7 @@ FUNCTIONS: dict[str, tuple[tuple[str, ...], Builder]] = {
     "triangle_wave": (("x", "y", "z_amplitude", "z_frequency", "z_offset"), _triangle_wave),
     "3d_spline": (_SPLINE, _spline_3d),
     "3d_spline_ur5_workspace": (_SPLINE, _spline_3d_ur5_workspace),
+    "fixed_trajectory": (("trajectory_id",), _fixed_trajectory),
     "fixed_position_ab": (_ABC[:6] + ("hold_a", "hold_b"), _fixed_position_ab),
     "interpolated_abc": (
         _ABC + ("hold_a", "hold_b", "hold_c", "n_sampling_points_ab", "n_sampling_points_bc"),
@@ -185,9 +217,9 @@ PARAM_RANGES: dict[str, tuple[float, float, str]] = {
     "n_sampling_points_ab": _COUNT,
     "n_sampling_points_bc": _COUNT,
     **{f"hold_{t}": (0.0, MAX_LAP_S, "s") for t in "abc"},
+    "trajectory_id": (0.0, float(FIXED_TRAJECTORIES - 1), "(an integer id)"),
 }
 """Allowed range of each float parameter (low, high, unit), checked before anything is built."""
-UNSUPPORTED = {"fixed_trajectory": "it reads object_trajectories/*.json files of the ROS package"}
 
 
 def build_trajectory(
@@ -203,7 +235,7 @@ def build_trajectory(
         like the ROS parameter server keeps the previous parameters).
 
     Raises:
-        InvalidStateError: unknown or unsupported function, missing parameters, parameters
+        InvalidStateError: unknown function, missing parameters, parameters
             outside ``PARAM_RANGES`` (NaN/inf included), or parameters that give an empty
             trajectory.
     """
@@ -211,10 +243,6 @@ def build_trajectory(
     function = string_params.get(prefix + "function")
     if function is None:
         return None
-    if function in UNSUPPORTED:
-        raise InvalidStateError(
-            f"{prefix}function {function!r} is not supported: {UNSUPPORTED[function]}"
-        )
     if function not in FUNCTIONS:
         raise InvalidStateError(
             f"unknown {prefix}function {quote(function)}; known: {', '.join(sorted(FUNCTIONS))}"

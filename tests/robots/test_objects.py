@@ -102,7 +102,8 @@ def test_missing_function_means_keep_previous():
     ("function", "params", "match"),
     [
         ("wobble", {}, "unknown object_0_function 'wobble'"),
-        ("fixed_trajectory", {"trajectory_id": 1.0}, "not supported"),
+        ("fixed_trajectory", {"trajectory_id": 50.0}, r"object_0_trajectory_id = 50.0"),
+        ("fixed_trajectory", {"trajectory_id": 1.5}, "not an integer"),
         ("fixed_position", {"x": 0.1, "y": 0.2}, "object_0_z"),
         ("fixed_position", {"x": 0.1, "y": 0.2, "z": float("nan")}, "non-finite"),
         ("triangle_wave", dict(x=0, y=0, z_amplitude=1, z_frequency=0, z_offset=0), "z_frequency"),

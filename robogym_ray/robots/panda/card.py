@@ -18,7 +18,15 @@ from robogym_ray.robots.card import (
     StateLayout,
     StateSlot,
 )
-from robogym_ray.robots.panda.model import DH, FLANGE_D, JOINT_NAMES, LOWER, MAX_VELOCITY, UPPER
+from robogym_ray.robots.panda.model import (
+    DH,
+    EE_FRAMES,
+    FLANGE_D,
+    JOINT_NAMES,
+    LOWER,
+    MAX_VELOCITY,
+    UPPER,
+)
 from robogym_ray.robots.panda.state import RS_MODE_KEYS
 
 _LOWER = tuple(float(v) for v in LOWER)
@@ -40,7 +48,9 @@ CARD = RobotCard(
         velocity_fields=("max_velocity_scale_factor",), joint_group="joints", joint_count=7
     ),
     # Franka's modified-DH rows (a, d, alpha) of joints 1-7, flattened, then the flange offset.
-    geometry=Geometry(dh=tuple(v for row in DH for v in row) + (FLANGE_D,)),
+    # The base stays at the world origin: panda_robot_server.launch accepts x ... yaw (robo-gym's
+    # IsaacReachPanda sends z:=0.0) but ignores them, so base_height_option is None.
+    geometry=Geometry(dh=tuple(v for row in DH for v in row) + (FLANGE_D,), ee_frames=EE_FRAMES),
     # panda_robot_server.launch serves one robot: no model argument.
     launch=LaunchFamily("panda_robot_server.launch"),
     state=StateLayout(

@@ -8,7 +8,9 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 from robogym_ray.errors import ConfigError, UnknownRobotError
+from robogym_ray.robots.panda.card import CARD
 from robogym_ray.robots.panda.state import RS_MODES
+from robogym_ray.robots.scenes import SCENES, WORLDS
 from robogym_ray.robots.validation import (
     check_option_names,
     parse_cycle_option,
@@ -18,33 +20,20 @@ from robogym_ray.robots.validation import (
     resolve_scene,
 )
 
-
-@dataclass(frozen=True)
-class PandaScene:
-    """What surrounds the arm (the robot stands at the world origin in every world)."""
-
-    ground_z: float
-    """Height of the ground plane (m)."""
-    table: bool
-    """robo-gym's 1.27 x 0.9 x 1 m demo table, top at z = 0 centred at x = 0.4 (the robot is
-    mounted on it); Gazebo reports touching it as a contact like any other."""
-
-
-SCENES: dict[str, PandaScene] = {
-    "empty": PandaScene(ground_z=0.0, table=False),
-    "tabletop": PandaScene(ground_z=-1.0, table=True),
-}
-WORLDS: dict[str, str] = {
-    "empty.world": "empty",
-    "empty_no_gravity.world": "empty",
-    "tabletop_sphere50_no_collision_no_gravity.world": "tabletop",
-}
-"""robo-gym ``world_name`` -> our scene (gravity does not matter to a kinematic arm)."""
 DEFAULT_WORLD = "empty.world"
+"""The launch file's default; ``robots/scenes.py`` has the worlds (shared with the UR)."""
+PANDA_WORLDS: dict[str, str] = {
+    **WORLDS,
+    "tabletop_sphere50_no_collision_no_gravity.world": "isaactabletop",
+}
+"""``WORLDS`` with one deliberate difference. robo-gym's EndEffectorPositioningPanda loads the
+UR's tabletop world, whose table top is 0.1 m above the Panda's base (the Panda stands at the
+origin, its launch file ignores ``z``): the table would enclose link 1, and every contact check
+would report a collision from the first step. We serve the demo table instead, whose top is
+level with the Panda's base, so the task stays the task (docs/protocol.md)."""
 
 REFERENCE_FRAMES = ("world", "base", "panda_link0")
 """All three coincide in robo-gym's Panda launch files (identity static transforms)."""
-EE_FRAMES = ("panda_hand", "panda_link8")
 ACTION_MODES = ("abs_pos", "delta_pos")
 """The velocity modes of the ROS bridge are not simulated (robo-gym 2.1.0's envs assert
 abs_pos)."""
@@ -61,7 +50,8 @@ IGNORED_OPTIONS = frozenset(
 )  # fmt: skip
 """Accepted and ignored: GUIs; the object is a 50 mm sphere with frame ``target``; the ROS
 bridge's ways of publishing position commands and averaging joint states (the kinematic
-controller has no such noise); the base pose (the launch file itself ignores it)."""
+controller has no such noise); the base pose (the launch file itself ignores it: the card's
+``base_height_option`` is None)."""
 _HANDLED = frozenset(
     {"world_name", "rs_mode", "action_mode", "reference_frame", "ee_frame",
      "max_velocity_scale_factor", "action_cycle_rate", "objects_controller", "n_objects",
@@ -91,7 +81,7 @@ class PandaConfig:
             ("rs_mode", self.rs_mode, RS_MODES),
             ("action_mode", self.action_mode, ACTION_MODES),
             ("reference_frame", self.reference_frame, REFERENCE_FRAMES),
-            ("ee_frame", self.ee_frame, EE_FRAMES),
+            ("ee_frame", self.ee_frame, CARD.geometry.ee_frames),
         ):
             if value not in known:
                 error = UnknownRobotError if name == "scene" else ConfigError
@@ -118,7 +108,9 @@ def parse_options(model: str, scene: str | None, options: Mapping[str, str]) -> 
         raise ConfigError("option real_robot=true is not supported by the simulated Panda")
     world_name = opts.get("world_name")
     kwargs: dict[str, object] = {
-        "scene": resolve_scene("Panda", scene, world_name, SCENES, WORLDS, WORLDS[DEFAULT_WORLD])
+        "scene": resolve_scene(
+            "Panda", scene, world_name, SCENES, PANDA_WORLDS, PANDA_WORLDS[DEFAULT_WORLD]
+        )
     }
     for key in ("rs_mode", "action_mode", "reference_frame", "ee_frame"):
         if key in opts:

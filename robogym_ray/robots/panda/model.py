@@ -47,6 +47,8 @@ FLANGE_D = 0.107
 HAND_YAW = -math.pi / 4
 """Flange -> ``panda_hand`` rotation about z (rad)."""
 
+EE_FRAMES: tuple[str, ...] = ("panda_hand", "panda_link8")
+"""Frames the ``ee_frame`` launch argument may name, the launch file's default first."""
 LOWER = np.array([-2.8973, -1.7628, -2.8973, -3.0718, -2.8973, -0.0175, -2.8973])
 UPPER = np.array([2.8973, 1.7628, 2.8973, -0.0698, 2.8973, 3.7525, 2.8973])
 """Joint position limits (rad)."""

@@ -30,7 +30,7 @@ from robogym_ray.errors import InvalidActionError, InvalidStateError
 from robogym_ray.robots.arm import LIMIT_TOLERANCE, SimArm, check_state_keys
 from robogym_ray.robots.base import StateRequest, StateSnapshot
 from robogym_ray.robots.command_handler import CommandHandlerConfig
-from robogym_ray.robots.panda.config import SCENES, PandaConfig, parse_options
+from robogym_ray.robots.panda.config import PandaConfig, parse_options
 from robogym_ray.robots.panda.controller import JointPositionController
 from robogym_ray.robots.panda.model import (
     JOINT_NAMES,
@@ -47,8 +47,7 @@ from robogym_ray.robots.panda.state import (
     compose_state,
     sensor_groups,
 )
-
-_IDENTITY = (0.0, 0.0, 0.0, 1.0)
+from robogym_ray.robots.scenes import SCENES, add_scene
 
 
 def make_panda(
@@ -78,17 +77,14 @@ class PandaArm(SimArm):
 
     # -- scene ----------------------------------------------------------------------------------
     def _build_scene(self) -> None:
-        world, scene = self._world, SCENES[self.config.scene]
-        ground = world.add_plane("ground")
-        world.client.resetBasePositionAndOrientation(ground, [0, 0, scene.ground_z], _IDENTITY)
-        if scene.table:
-            world.add_box("table", (0.635, 0.45, 0.5), (0.4, 0.0, -0.5))
+        scene = SCENES[self.config.scene]
+        add_scene(self._world, scene)
         index = self._load_robot(urdf_path(), (0.0, 0.0, 0.0))
         self._joint_ids = [index[n] for n in JOINT_NAMES]
         # Contact sensors: links 1-7 and the hand with its fingers (shapes of panda_link8).
         self._contact_links = frozenset(index[n] for n in (*LINK_NAMES, "panda_link8"))
         self._ee_link = index[self.config.ee_frame]
-        self._add_objects(N_OBJECTS[self.config.rs_mode], collision=False)
+        self._add_objects(N_OBJECTS[self.config.rs_mode], collision=scene.object_collision)
 
     # -- actions --------------------------------------------------------------------------------
     def validate_action(self, action: np.ndarray) -> np.ndarray:

@@ -1,8 +1,8 @@
 """The UR arms' cards, one per model: what code outside ``robots/ur/`` may know about them.
 
-Everything is read from ``geometry.py`` (the DH table, joint limits and Vabs per model) and
-``state.py`` (the key sets), so each number is written once. Plain data plus numpy: importing
-this module imports no PyBullet.
+Everything is read from ``geometry.py`` (the DH table, joint limits, Vabs per model, the base
+height and its launch argument, the end-effector frames) and ``state.py`` (the key sets), so
+each number is written once. Plain data plus numpy: importing this module imports no PyBullet.
 """
 
 from __future__ import annotations
@@ -18,7 +18,9 @@ from robogym_ray.robots.card import (
     StateSlot,
 )
 from robogym_ray.robots.ur.geometry import (
+    BASE_HEIGHT_OPTION,
     BASE_LINK_HEIGHT,
+    EE_FRAMES,
     JOINT_NAMES,
     POSITION_LIMITS,
     ROS_FROM_ENV,
@@ -57,7 +59,12 @@ def _card(model: URModel) -> RobotCard:
         emulation=EmulationHooks(
             velocity_fields=("max_velocity_scale_factor",), joint_group="joints", joint_count=6
         ),
-        geometry=Geometry(dh=model.dh, base_height=BASE_LINK_HEIGHT),
+        geometry=Geometry(
+            dh=model.dh,
+            base_height=BASE_LINK_HEIGHT,
+            base_height_option=BASE_HEIGHT_OPTION,
+            ee_frames=EE_FRAMES,
+        ),
         launch=LaunchFamily(LAUNCH_FILE, MODEL_ARGUMENT, model.name),
         state=_STATE,
         factory="robogym_ray.robots.ur.model:make_ur",

@@ -7,40 +7,25 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
 from robogym_ray.errors import ConfigError, UnknownRobotError
-from robogym_ray.robots.ur.geometry import UR_MODELS
+from robogym_ray.robots.scenes import SCENES, WORLDS
+from robogym_ray.robots.ur.card import CARDS
+from robogym_ray.robots.ur.geometry import BASE_LINK_HEIGHT, UR_MODELS
 from robogym_ray.robots.ur.state import RS_MODES
 from robogym_ray.robots.validation import (
     check_option_names,
+    check_range,
     parse_cycle_option,
     parse_option_bool,
     parse_option_number,
     resolve_scene,
 )
 
-
-@dataclass(frozen=True)
-class URScene:
-    """What surrounds the arm."""
-
-    table: bool
-    """A 1.0 x 1.0 x 0.1 m table centred at (-0.05, 0.2, 0.05), top at base_link height."""
-    object_collision: bool
-    """Whether the object spheres collide with the arm (sphere50 vs sphere50_no_collision)."""
-
-
-SCENES: dict[str, URScene] = {
-    "empty": URScene(table=False, object_collision=False),
-    "tabletop": URScene(table=True, object_collision=True),
-    "tabletop_no_collision": URScene(table=True, object_collision=False),
-}
-WORLDS: dict[str, str] = {
-    "empty.world": "empty",
-    "tabletop_sphere50.world": "tabletop",
-    "tabletop_sphere50_no_collision.world": "tabletop_no_collision",
-}
-"""robo-gym ``world_name`` -> our scene."""
 DEFAULT_SCENE = "empty"
 """The launch file's default world is empty.world."""
+BASE_HEIGHTS = (-2.0, 2.0)
+"""Accepted base heights (m, option ``z``). robo-gym sends 0.0 (IsaacReach) or leaves the
+default 0.1; beyond a couple of metres the arm is nowhere near the ground or a table, and a
+base 3e38 m up is a client bug, not a pose."""
 
 IGNORED_OPTIONS = frozenset(
     {"gui", "rviz_gui", "gazebo_gui", "server_port", "object_0_model_name", "object_0_frame",
@@ -61,6 +46,7 @@ _HANDLED = frozenset(
     {"world_name", "rs_mode", "action_mode", "reference_frame", "max_velocity_scale_factor",
      "action_cycle_rate", "objects_controller", "n_objects", "ur_model", "ee_frame"}
 )  # fmt: skip
+"""The options handled here; the base height's (``z``) comes from the card."""
 
 
 @dataclass(frozen=True)
@@ -70,7 +56,7 @@ class URConfig:
     model: str = "ur5"
     """ur3 | ur3e | ur5 | ur5e | ur10 | ur10e | ur16e."""
     scene: str = DEFAULT_SCENE
-    """empty | tabletop | tabletop_no_collision (see SCENES / WORLDS)."""
+    """A scene of ``robots/scenes.py`` (``world_name`` picks it through ``WORLDS``)."""
     rs_mode: str = "only_robot"
     """only_robot | 1object | 1moving2points | 2objects2points: which state keys are served
     (default as ur_robot_server.launch: rs_mode false -> target_mode only_robot)."""
@@ -78,6 +64,11 @@ class URConfig:
     """abs_pos: actions are absolute joint targets; delta_pos: targets = current + action."""
     reference_frame: str = "base_link"
     """base_link, or base (base_link rotated pi about z: x and y negated)."""
+    ee_frame: str = "tool0"
+    """The frame reported as ``ee_to_ref_*``: one of the card's ``ee_frames`` (tool0, or
+    IsaacLab's tool1)."""
+    base_height: float = BASE_LINK_HEIGHT
+    """base_link's height above the world origin (m; option ``z``)."""
     max_velocity_scale_factor: float = 1.0
     """vmax_j = factor x Vabs_j for the trajectory durations."""
     action_cycle: float = 0.04
@@ -97,6 +88,10 @@ class URConfig:
         _choice("rs_mode", self.rs_mode, RS_MODES)
         _choice("action_mode", self.action_mode, ("abs_pos", "delta_pos"))
         _choice("reference_frame", self.reference_frame, ("base_link", "base"))
+        _choice("ee_frame", self.ee_frame, CARDS[self.model].geometry.ee_frames)
+        option = CARDS[self.model].geometry.base_height_option
+        check_range(f"base_height (option {option})", self.base_height, *BASE_HEIGHTS, "m",
+                    ConfigError)  # fmt: skip
         for name in ("max_velocity_scale_factor", "action_cycle", "actuation_cycle"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
@@ -117,15 +112,18 @@ def _choice(name: str, value: str, known: Iterable[str]) -> None:
 def parse_options(model: str, scene: str | None, options: Mapping[str, str]) -> URConfig:
     """Build a URConfig from launch-argument style options; unknown options raise ConfigError."""
     opts = dict(options)
-    check_option_names("UR", opts, _HANDLED | IGNORED_OPTIONS | set(_MUST_BE_FALSE))
+    _choice("ur_model", model, UR_MODELS)
+    height_option = CARDS[model].geometry.base_height_option
+    known = _HANDLED | IGNORED_OPTIONS | set(_MUST_BE_FALSE)
+    check_option_names("UR", opts, known | ({height_option} if height_option else set()))
     for key in _MUST_BE_FALSE:
         if key in opts and parse_option_bool(key, opts[key]):
             raise ConfigError(f"option {key}=true is not supported by the simulated UR")
     if "ur_model" in opts and opts["ur_model"] != model:
         raise ConfigError(f"option ur_model={opts['ur_model']!r} contradicts robot {model!r}")
-    if opts.get("ee_frame", "tool0") != "tool0":
-        raise ConfigError(f"option ee_frame={opts['ee_frame']!r}: only tool0 is supported")
     kwargs: dict[str, object] = {"model": model}
+    if height_option in opts:
+        kwargs["base_height"] = parse_option_number(height_option, opts[height_option])
     kwargs["scene"] = resolve_scene(
         "UR", scene, opts.get("world_name"), SCENES, WORLDS, DEFAULT_SCENE
     )
@@ -134,7 +132,7 @@ def parse_options(model: str, scene: str | None, options: Mapping[str, str]) -> 
     if rs_mode == "false":
         rs_mode = opts.get("target_mode", URConfig.rs_mode)
     kwargs["rs_mode"] = rs_mode
-    for key in ("action_mode", "reference_frame"):
+    for key in ("action_mode", "reference_frame", "ee_frame"):
         if key in opts:
             kwargs[key] = opts[key]
     if "max_velocity_scale_factor" in opts:

@@ -45,7 +45,11 @@ TWO_PI = 6.28318530718
 POSITION_LIMITS = np.array([TWO_PI, TWO_PI, math.pi, TWO_PI, TWO_PI, TWO_PI])
 """|q| limits in env order (rad): ±2pi everywhere except the elbow (±pi); same for all models."""
 BASE_LINK_HEIGHT = 0.1
-"""base_link sits at world (0, 0, 0.1) in every robo-gym UR world."""
+"""Default height of base_link above the world origin (m): ur_robot_server.launch's ``z``
+default, on the tabletop's top. The ``z`` launch argument moves it (IsaacReach: 0.0, on the
+demo table)."""
+BASE_HEIGHT_OPTION = "z"
+"""The launch argument that sets the base height (the base_link pose's z in the world)."""
 
 
 @dataclass(frozen=True)
@@ -158,6 +162,12 @@ FLANGE_RPY = (0.0, -math.pi / 2, -math.pi / 2)
 """wrist_3_link -> flange."""
 TOOL0_RPY = (math.pi / 2, 0.0, math.pi / 2)
 """flange -> tool0."""
+TOOL1_RPY = (0.0, -1.5707, 3.1415)
+"""tool0 -> tool1, IsaacLab's end-effector frame: ur_robot_server.launch (robot servers 2.1.0)
+publishes it as a static transform ``0 0 0 3.1415 -1.5707 0 tool0 tool1`` (x y z yaw pitch
+roll). The truncated angles are kept: they are what the ROS server reports."""
+EE_FRAMES: tuple[str, ...] = ("tool0", "tool1")
+"""Frames the ``ee_frame`` launch argument may name, the launch file's default first."""
 
 
 def _quat_xyzw(r: np.ndarray) -> np.ndarray:
@@ -190,7 +200,7 @@ def forward_kinematics(
 
     Returns:
         ``{frame: (xyz, quat_xyzw)}`` for ``base_link_inertia``, the six links of
-        ``LINK_NAMES``, ``flange`` and ``tool0``.
+        ``LINK_NAMES``, ``flange``, ``tool0`` and ``tool1``.
     """
     spec = UR_MODELS[model] if isinstance(model, str) else model
     q = np.asarray(q_env_order, dtype=np.float64).reshape(6)
@@ -200,7 +210,8 @@ def forward_kinematics(
         m = m @ _transform(xyz, rpy) @ _transform((0.0, 0.0, 0.0), (0.0, 0.0, float(angle)))
         frames[name] = m
     frames["flange"] = m = m @ _transform((0.0, 0.0, 0.0), FLANGE_RPY)
-    frames["tool0"] = m @ _transform((0.0, 0.0, 0.0), TOOL0_RPY)
+    frames["tool0"] = m = m @ _transform((0.0, 0.0, 0.0), TOOL0_RPY)
+    frames["tool1"] = m @ _transform((0.0, 0.0, 0.0), TOOL1_RPY)
     return {k: (v[:3, 3].copy(), _quat_xyzw(v[:3, :3])) for k, v in frames.items()}
 
 
@@ -300,6 +311,8 @@ def urdf_text(model: str | URModel) -> str:
     lines.append(_link_xml("flange", _FRAME_MASS, []))
     lines.append(_joint_xml("flange-tool0", "fixed", "flange", "tool0", zero, TOOL0_RPY))
     lines.append(_link_xml("tool0", _FRAME_MASS, []))
+    lines.append(_joint_xml("tool0-tool1", "fixed", "tool0", "tool1", zero, TOOL1_RPY))
+    lines.append(_link_xml("tool1", _FRAME_MASS, []))
     lines.append("</robot>")
     return "\n".join(lines) + "\n"
 

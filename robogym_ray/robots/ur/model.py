@@ -9,7 +9,9 @@ SendAction                6 floats, ROS order [elbow, shoulder_lift, shoulder_pa
 SetState ``state_dict``   the six ``*_joint_position`` goals (else ``state[6:12]``, ROS order);
                           every other known key is ignored, unknown keys are an error
 SetState params           ``object_<i>_function`` + ``object_<i>_*`` floats (``objects``)
-GetState                  the rs_mode's exact key set + flat list (``state``)
+GetState                  the rs_mode's exact key set + flat list (``state``); ``ee_to_ref_*``
+                          is the launch argument ``ee_frame`` (tool0, or tool1 = tool0 turned
+                          by IsaacLab's fixed rotation, ``geometry.TOOL1_RPY``)
 ========================  ==================================================================
 
 Differences from the ROS/Gazebo server, all deliberate (sim time is free, Gazebo is not here):
@@ -34,10 +36,10 @@ from robogym_ray.errors import InvalidActionError, InvalidStateError
 from robogym_ray.robots.arm import LIMIT_TOLERANCE, SimArm, check_state_keys
 from robogym_ray.robots.base import StateRequest, StateSnapshot
 from robogym_ray.robots.command_handler import CommandHandlerConfig
-from robogym_ray.robots.ur.config import SCENES, URConfig, parse_options
+from robogym_ray.robots.scenes import SCENES, add_scene
+from robogym_ray.robots.ur.config import URConfig, parse_options
 from robogym_ray.robots.ur.controller import JointTrajectoryController
 from robogym_ray.robots.ur.geometry import (
-    BASE_LINK_HEIGHT,
     JOINT_NAMES,
     LINK_NAMES,
     POSITION_LIMITS,
@@ -84,14 +86,13 @@ class URArm(SimArm):
 
     # -- scene ----------------------------------------------------------------------------------
     def _build_scene(self) -> None:
-        world, scene = self._world, SCENES[self.config.scene]
-        world.add_plane("ground")
-        if scene.table:
-            world.add_box("table", (0.5, 0.5, 0.05), (-0.05, 0.2, 0.05))
-        index = self._load_robot(urdf_path(self.model), (0.0, 0.0, BASE_LINK_HEIGHT))
+        scene = SCENES[self.config.scene]
+        add_scene(self._world, scene)
+        index = self._load_robot(urdf_path(self.model), (0.0, 0.0, self.config.base_height))
         self._joint_ids = [index[n] for n in JOINT_NAMES]
         self._contact_links = frozenset(index[n] for n in LINK_NAMES)
-        self._frame_ids = [index["tool0"], index["forearm_link"]]
+        # tool1 is a fixed child of tool0 in our URDF, as in the ROS server's tf tree.
+        self._frame_ids = [index[self.config.ee_frame], index["forearm_link"]]
         self._add_objects(N_OBJECTS[self.config.rs_mode], collision=scene.object_collision)
 
     # -- actions --------------------------------------------------------------------------------
@@ -129,7 +130,7 @@ class URArm(SimArm):
     # -- objects and frames ---------------------------------------------------------------------
     def _object_to_world(self, xyz: np.ndarray) -> np.ndarray:
         base_link = xyz * _ROT_Z_PI if self.config.reference_frame == "base" else xyz
-        return base_link + np.array([0.0, 0.0, BASE_LINK_HEIGHT])
+        return base_link + np.array([0.0, 0.0, self.config.base_height])
 
     # -- state ----------------------------------------------------------------------------------
     def _joint_goal(self, request: StateRequest) -> np.ndarray:
@@ -171,7 +172,7 @@ class URArm(SimArm):
     def _pose_in_ref(self, world_xyz, quat_xyzw) -> np.ndarray:
         x, y, z = world_xyz
         qx, qy, qz, qw = quat_xyzw
-        z -= BASE_LINK_HEIGHT
+        z -= self.config.base_height
         if self.config.reference_frame == "base":
             # Rz(pi) (x) q: positions (-x, -y, z), quaternion (-qy, qx, qw, -qz).
             return np.array([-x, -y, z, -qy, qx, qw, -qz])
