@@ -43,3 +43,63 @@ class RobotServerError(RoboGymRayError):
 
 class RenderError(RoboGymRayError, RuntimeError):
     """A render mode cannot work here (no display for ``human``, a missing optional package)."""
+
+
+class DiskWriteError(RoboGymRayError):
+    """A file of a run (checkpoint, replay, summary, TensorBoard events) could not be written;
+    the file that was there before is untouched and no temporary file is left behind.
+
+    Raised inside the learner actor too: Ray pickles it with ``args`` (the message) and
+    ``__dict__`` (the attributes), so ``__init__`` takes the message alone.
+
+    Attributes:
+        path: the file that could not be written (its real name, not a temporary one).
+        reason: why, e.g. ``no space left on device`` (``DiskFullError``).
+        what: what the file is (``learner checkpoint``, ``summary`` ...).
+    """
+
+    def __init__(self, message: str, *, path: str = "", reason: str = "", what: str = "") -> None:
+        super().__init__(message)
+        self.path, self.reason, self.what = path, reason, what
+
+    @classmethod
+    def of(cls, what: str, path: object, exc: OSError) -> DiskWriteError:
+        """The error for ``exc`` while writing ``what`` to ``path``; ENOSPC and EDQUOT (the disk
+        or the quota full) give a ``DiskFullError``."""
+        import errno
+        import os
+
+        reason = os.strerror(exc.errno) if exc.errno else str(exc)
+        reason = reason[:1].lower() + reason[1:]  # strerror: "No space left on device"
+        kind = DiskFullError if exc.errno in (errno.ENOSPC, errno.EDQUOT) else DiskWriteError
+        message = f"cannot write {what} {path}: {reason}"
+        return kind(message, path=str(path), reason=reason, what=what)
+
+    def also(self, note: str) -> DiskWriteError:
+        """The same error (type and attributes) with ``note`` appended to its message."""
+        return type(self)(f"{self}; {note}", path=self.path, reason=self.reason, what=self.what)
+
+
+class DiskFullError(DiskWriteError):
+    """A ``DiskWriteError`` because the disk (or the user's quota) is full."""
+
+
+class BindError(RoboGymRayError, OSError):
+    """A server cannot listen on its address (not an interface of this machine, no permission).
+
+    An ``OSError`` as well, so callers that fall back to another port on a failed bind (the
+    supervisor's keep-port restart) keep doing so.
+    """
+
+    def __init__(self, message: str, *, host: str = "", port: int = 0) -> None:
+        super().__init__(message)
+        self.host = host
+        self.port = port
+
+
+class PortInUseError(BindError):
+    """A server's TCP port is held already: by another server of ours or any other program.
+
+    Servers bind exclusively (no SO_REUSEPORT); sharing a port would let the kernel spread new
+    clients of one address over two robots.
+    """

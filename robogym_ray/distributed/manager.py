@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 from robogym_ray.config import add_config_args, check_port, config_from_args
 from robogym_ray.errors import ConfigError
+from robogym_ray.robots.server import check_port_free
 from robogym_ray.supervision.manager_service import ManagerLimits
 from robogym_ray.supervision.restart_policy import RestartPolicy
 from robogym_ray.supervision.supervisor import SupervisorConfig
@@ -89,13 +90,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    cfg = config_from_args(ManagerConfig, args)
+    # A held port is refused here, in one line, before Ray is imported or started (seconds, and
+    # log lines on stderr); the actor's own exclusive bind still catches a port taken later.
+    check_port_free(cfg.host, cfg.port, "server manager port")
+
     import ray  # lazy: `robogym-ray --help` must not import Ray
 
     from robogym_ray.distributed.local_ray import join_ray, start_local_ray
     from robogym_ray.distributed.names import NAMESPACE
     from robogym_ray.distributed.remote import start_supervisor
 
-    cfg = config_from_args(ManagerConfig, args)
     if cfg.ray_address:
         join_ray(cfg.ray_address, namespace=NAMESPACE)
     else:
@@ -109,8 +114,10 @@ def run(args: argparse.Namespace) -> int:
         )
     except Exception as exc:  # noqa: BLE001 - the actor's constructor failed (port taken ...)
         ray.shutdown()
+        # Ray's error holds the actor's whole traceback; its last line is the actual error.
+        cause = (str(exc).strip().splitlines() or [type(exc).__name__])[-1]
         raise ConfigError(
-            f"could not start the server manager on {cfg.host}:{cfg.port}: {exc}"
+            f"could not start the server manager on {cfg.host}:{cfg.port}: {cause}"
         ) from None
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):

@@ -107,8 +107,9 @@ class RaySpawner:
         except Exception:  # noqa: BLE001 - hung or gone already; ray.kill follows either way
             log.debug("graceful stop of %s failed", server.address, exc_info=True)
         ray.kill(server.ref, no_restart=True)
-        # Wait until the process is gone: a restart may rebind its port, and gRPC binds with
-        # SO_REUSEPORT, so a still-living old server would share the port with the new one.
+        # Wait until the process is gone: a restart may rebind its port, and servers bind it
+        # exclusively, so while the old one lives the new bind fails (and RobotServerHost
+        # falls back to a free port, which robo-gym's client cannot follow).
         end = time.monotonic() + 10.0
         while time.monotonic() < end:
             try:

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import logging
 import threading
-from concurrent import futures
 from dataclasses import dataclass
 from typing import Any
 
@@ -21,6 +20,7 @@ from robogym_ray.errors import RoboGymRayError
 from robogym_ray.protocol import server_manager_pb2 as sm
 from robogym_ray.protocol import server_manager_pb2_grpc as sm_grpc
 from robogym_ray.robots.registry import check_options
+from robogym_ray.robots.server import grpc_server, listen
 from robogym_ray.robots.validation import clip_text, reason
 from robogym_ray.supervision.launch import LaunchSpec, parse_launch_cmd
 from robogym_ray.supervision.server_host import ServerSpec
@@ -175,16 +175,16 @@ def serve_manager(
     """Start the ServerManager service on ``host:port``; returns the server and the bound port.
 
     Raises:
-        OSError: the port could not be bound.
+        PortInUseError: the port is held (by another manager, robot server or any program);
+            robo-gym's client would otherwise reach either manager.
+        BindError: the port cannot be bound for another reason.
     """
     service = ServerManagerService(supervisor, host, node, limits)
     # Starts hold at most max_concurrent_starts + max_waiting_starts threads; the spare ones
     # keep VerifyConnection (robo-gym's discovery, 20 s deadline) and kills answered meanwhile.
     starts = service.limits.max_concurrent_starts + service.limits.max_waiting_starts
-    server = grpc.server(futures.ThreadPoolExecutor(max_workers=starts + SPARE_THREADS))
+    server = grpc_server(starts + SPARE_THREADS)
     sm_grpc.add_ServerManagerServicer_to_server(service, server)
-    bound = server.add_insecure_port(f"[{host}]:{port}" if ":" in host else f"{host}:{port}")
-    if bound == 0:
-        raise OSError(f"could not bind the server manager to {host}:{port}")
+    bound = listen(server, host, port, "server manager port")
     server.start()
     return server, bound
