@@ -79,6 +79,17 @@ class ArmTask(RobotServerEnv):
         self.start_joints = np.asarray(joints, dtype=np.float64)
         return msg
 
+    def set_joints(
+        self,
+        client: RobotServerClient,
+        joints: np.ndarray,
+        string_params: Mapping[str, str] | None = None,
+        float_params: Mapping[str, float] | None = None,
+    ) -> pb.State:
+        """SetState to the joint goal ``joints`` (rad, task order) in the arm's own message (its
+        keys, through ``_set_joint_goal``), with the episode's params; the state after it."""
+        raise NotImplementedError
+
     def checked(self, msg: pb.State) -> pb.State:
         """``msg`` if its keys are exactly the rs_mode's; a server in another mode (or another
         robot's server) would otherwise be read as zeros or fail on a missing key later."""

@@ -21,13 +21,19 @@ def frame_xyz(sd: Mapping[str, float], prefix: str) -> np.ndarray:
     return np.array([sd[f"{prefix}_to_ref_translation_{a}"] for a in "xyz"], dtype=np.float64)
 
 
+def frame_quat(sd: Mapping[str, float], prefix: str) -> np.ndarray:
+    """Quaternion ``[x, y, z, w]`` of frame ``prefix`` as the server reports it (not renormalised:
+    robo-gym observes these values)."""
+    return np.array([sd[f"{prefix}_to_ref_rotation_{a}"] for a in "xyzw"], dtype=np.float64)
+
+
 def frame_rotation(sd: Mapping[str, float], prefix: str) -> Rotation:
     """Orientation of frame ``prefix`` in the reference frame.
 
     Raises:
         InvalidStateError: the quaternion is not finite or (near) zero.
     """
-    quat = np.array([sd[f"{prefix}_to_ref_rotation_{a}"] for a in "xyzw"], dtype=np.float64)
+    quat = frame_quat(sd, prefix)
     if not np.all(np.isfinite(quat)) or np.linalg.norm(quat) < 1e-6:
         raise InvalidStateError(f"{prefix} rotation quaternion {quat.tolist()} is not valid")
     return Rotation.from_quat(quat)

@@ -25,6 +25,8 @@ _MIRS = "robogym_ray.envs.mir100_sectors:"
 _UR = "robogym_ray.envs.ur_tasks:"
 _URA = "robogym_ray.envs.ur_avoidance:"
 _PANDA = "robogym_ray.envs.panda_tasks:"
+_URM = "robogym_ray.envs.ur_modular:"
+_PANDAM = "robogym_ray.envs.panda_modular:"
 
 RobotVariant = tuple[str, dict[str, Any]]
 """(robot as spelled in the id, env kwargs that pick it)."""
@@ -57,6 +59,12 @@ TASKS: tuple[tuple[str, str, tuple[RobotVariant, ...]], ...] = (
     # robo-gym 2.1.0's Panda tasks (14 obs / 6 actions and 29 / 6).
     ("EmptyEnvironment", _PANDA + "EmptyEnvironmentPanda", (("Panda", {}),)),
     ("EndEffectorPositioning", _PANDA + "EndEffectorPositioningPanda", (("Panda", {}),)),
+    # robo-gym 2.1.0's modular UR envs (12 obs / 5 actions and 26 / 5).
+    ("EmptyEnvironment2", _URM + "EmptyEnvironment2UR", _ur("UR5", "UR10")),
+    ("EndEffectorPositioning2", _URM + "EndEffectorPositioning2UR", _ur("UR5", "UR10")),
+    # robo-gym 2.1.0's Isaac Lab reach envs (25 obs / 6 actions and 32 / 7).
+    ("IsaacReach", _URM + "IsaacReachUR", _ur("UR10")),
+    ("IsaacReach", _PANDAM + "IsaacReachPanda", (("Panda", {}),)),
 )
 NONDETERMINISTIC = frozenset({"AvoidanceRaad2022"})
 """Tasks whose reset is not a function of the env seed alone: the sphere's spline is drawn by the

@@ -90,7 +90,8 @@ class URTask(ArmTask):
             "rs_mode": self.rs_mode,
             "reference_frame": "base_link",
             "max_velocity_scale_factor": str(self.velocity_scale),
-            "action_cycle_rate": str(int(self.action_rate)),
+            # "20" as robo-gym 2.0.1 sends it; a rate a user sets (12.5 Hz) is kept whole.
+            "action_cycle_rate": f"{self.action_rate:g}",
         }
         if self.rs_mode != "only_robot":
             options.update(objects_controller="true", n_objects="1.0", object_0_frame="target")
