@@ -11,13 +11,21 @@ import argparse
 import ast
 import dataclasses
 import inspect
+import json
+import math
+import os
+import reprlib
 import textwrap
+import types
 import typing
 from collections.abc import Mapping
 from functools import cache
+from pathlib import Path
 from typing import Any, TypeVar
 
 from robogym_ray.errors import ConfigError
+from robogym_ray.text import MAX_REASON_CHARS, clip_text, preview
+from robogym_ray.text import quote as quote_name
 
 T = TypeVar("T")
 
@@ -107,7 +115,12 @@ def config_from_args(cls: type[T], args: argparse.Namespace) -> T:
         if f.init and hasattr(args, f.name):
             value = getattr(args, f.name)
             values[f.name] = tuple(value) if isinstance(value, list) else value
-    return cls(**values)
+    # argparse converted each flag already; this catches what its converters let through (nan).
+    check_fields(cls, values, cls.__name__)
+    try:
+        return cls(**values)
+    except (TypeError, ValueError) as exc:
+        raise ConfigError(clip_text(str(exc), MAX_REASON_CHARS)) from None
 
 
 def merge_config(
@@ -115,17 +128,118 @@ def merge_config(
 ) -> T:
     """``cls(**values)`` (``base`` with ``values`` replaced, when given) with clear errors for
     unknown fields and bad values; JSON lists become tuples. The one place configs merge."""
-    known = {f.name for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
-    unknown = sorted(set(values) - known)
-    if unknown:
-        raise ConfigError(
-            f"{source}: unknown {cls.__name__} field(s) {unknown}; known: {sorted(known)}"
-        )
+    check_fields(cls, values, f"{source}: {cls.__name__}")
     try:
         values = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()}
         return cls(**values) if base is None else dataclasses.replace(base, **values)  # type: ignore[type-var]
     except (TypeError, ValueError) as exc:
-        raise ConfigError(f"{source}: invalid {cls.__name__}: {exc}") from None
+        reason = clip_text(str(exc), MAX_REASON_CHARS)
+        raise ConfigError(f"{source}: invalid {cls.__name__}: {reason}") from None
+
+
+# -- checking input before anything starts ----------------------------------------------------
+# One bounded repr for any value a user gave: a 50 MB string or a list nested 100000 deep is
+# quoted by its start (reprlib stops at depth 3, so quoting never recurses deeply either).
+_REPR = reprlib.Repr()
+_REPR.maxlevel, _REPR.maxlist, _REPR.maxtuple, _REPR.maxdict = 3, 6, 6, 4
+_REPR.maxstring = _REPR.maxother = 60
+QUOTE_CHARS = 80
+"""Characters of a user's value quoted in an error message."""
+
+
+def quote(value: object) -> str:
+    """``repr(value)`` cut to about QUOTE_CHARS characters, for one-line error messages."""
+    if isinstance(value, str):
+        return quote_name(value)
+    text = _REPR.repr(value)
+    return text if len(text) <= QUOTE_CHARS else text[:QUOTE_CHARS] + "..."
+
+
+@cache
+def _field_types(cls: type) -> dict[str, Any]:
+    hints = typing.get_type_hints(cls)
+    return {f.name: hints[f.name] for f in dataclasses.fields(cls) if f.init}
+
+
+_NAMES = {bool: "true or false", int: "an integer", float: "a number", str: "a string"}
+_PLURALS = {bool: "booleans", int: "integers", float: "numbers", str: "strings"}
+
+
+def _fits(tp: Any, value: object) -> bool:
+    """Whether ``value`` (from JSON or a flag) is of the annotated type ``tp``."""
+    origin, args = typing.get_origin(tp), typing.get_args(tp)
+    if origin in (typing.Union, types.UnionType):
+        return any(_fits(arg, value) for arg in args)
+    if origin is tuple:
+        if not isinstance(value, (list, tuple)):  # a string is iterable, but not a list
+            return False
+        if len(args) == 2 and args[1] is Ellipsis:
+            return all(_fits(args[0], item) for item in value)
+        return len(args) == len(value) and all(map(_fits, args, value))
+    if tp is type(None):
+        return value is None
+    # bool is an int subclass to Python, never to a config: "workers": true is a mistake.
+    if tp is bool or tp is str:
+        return isinstance(value, tp)
+    if tp is int:
+        return isinstance(value, int) and not isinstance(value, bool)
+    if tp is float:
+        return (
+            isinstance(value, (int, float))
+            and not isinstance(value, bool)
+            and not math.isnan(value)
+        )
+    return True  # an annotation not checked here: the class's own __post_init__ decides
+
+
+def _describe(tp: Any) -> str:
+    origin, args = typing.get_origin(tp), typing.get_args(tp)
+    if origin in (typing.Union, types.UnionType):
+        return " or ".join(_describe(arg) for arg in args)
+    if origin is tuple:
+        if len(args) == 2 and args[1] is Ellipsis:
+            return f"a list of {_PLURALS.get(args[0], str(args[0]))}"
+        return f"a list of {len(args)}: {', '.join(_describe(a) for a in args)}"
+    if tp is type(None):
+        return "null"
+    if tp is float:
+        return "a number (not NaN)"
+    return _NAMES.get(tp, str(tp))
+
+
+def check_fields(cls: type, values: Mapping[str, Any], where: str) -> None:
+    """ConfigError naming the first key of ``values`` that is no field of the dataclass ``cls``
+    or whose value is not of the field's annotated type (``where``: e.g. ``FILE: train``).
+
+    Checked from the annotations, so every config class gets it, before its ``__post_init__``
+    compares values (``"seed": "abc"`` would otherwise fail deep inside a worker)."""
+    types_ = _field_types(cls)
+    unknown = [key for key in values if key not in types_]
+    if unknown:
+        raise ConfigError(
+            f"{where}: unknown field(s) {preview(list(map(str, unknown)))}; "
+            f"known: {', '.join(sorted(types_))}"
+        )
+    for key, value in values.items():
+        if not _fits(types_[key], value):
+            raise ConfigError(f"{where}.{key} = {quote(value)}; expected {_describe(types_[key])}")
+
+
+def read_json(path: str | os.PathLike, what: str = "config file") -> Any:
+    """The JSON in ``path``, or a one-line ConfigError saying why not."""
+    try:
+        return json.loads(Path(path).read_text())
+    except RecursionError:  # json's parser recurses once per nesting level
+        raise ConfigError(f"cannot read {what} {path}: JSON nested too deeply") from None
+    except (OSError, ValueError) as exc:  # ValueError: bad JSON, or bytes that are not UTF-8
+        raise ConfigError(f"cannot read {what} {path}: {clip_text(str(exc), 200)}") from None
+
+
+def check_address(address: object, what: str) -> None:
+    """ConfigError unless ``address`` is ``HOST:PORT`` with a port in [1, 65535]."""
+    host, sep, port = address.rpartition(":") if isinstance(address, str) else ("", "", "")
+    if not sep or not host or not port.isdigit() or not 0 < int(port) <= 65535:
+        raise ConfigError(f"{what} {quote(address)} is not HOST:PORT (port 1-65535)")
 
 
 def check_port(port: object, what: str) -> None:
@@ -133,3 +247,10 @@ def check_port(port: object, what: str) -> None:
     refuse one out of range: it binds ``port % 65536`` (``-1`` listens on 65535)."""
     if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= 65535:
         raise ConfigError(f"{what} = {port!r}; expected a TCP port in [0, 65535] (0 = a free one)")
+
+
+def check_ray_address(address: object, what: str) -> None:
+    """ConfigError unless ``address`` is one ``ray.init`` joins: auto, HOST:PORT or
+    ray://HOST:PORT (anything else fails only once Ray is asked, with a traceback)."""
+    if address != "auto":
+        check_address(address.removeprefix("ray://") if isinstance(address, str) else address, what)

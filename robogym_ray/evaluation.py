@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from robogym_ray.config import check_address, quote
 from robogym_ray.envs import outcomes
 from robogym_ray.envs.outcomes import CATEGORIES
 from robogym_ray.envs.registration import variant_id
@@ -78,6 +79,12 @@ class EvaluationConfig:
             raise ConfigError(f"video_episodes must be >= 1, got {self.video_episodes}")
         if self.via_actor and (self.rs_address is None or self.variant != "rob"):
             raise ConfigError("via_actor needs --rs-address and --variant rob")
+        if self.rs_address is not None:
+            check_address(self.rs_address, "--rs-address")
+        for flag, where in (("--out", self.out), ("--video", self.video)):
+            # Found only after every episode ran, this would lose the evaluation.
+            if where is not None and Path(where).exists() and not Path(where).is_dir():
+                raise ConfigError(f"{flag} {where} exists and is not a directory")
 
 
 @dataclass(frozen=True)
@@ -232,6 +239,10 @@ def evaluate(policy_path: str | Path, cfg: EvaluationConfig) -> EvaluationResult
         kwargs["rs_address"] = cfg.rs_address
     else:
         env_id = variant_id(env_id, "sim")
+    try:
+        gym.spec(env_id)  # before --via-actor starts Ray
+    except gym.error.Error as exc:  # an id of the right form that no task has
+        raise ConfigError(f"env id {quote(env_id)}: {str(exc).splitlines()[0]}") from None
     with contextlib.ExitStack() as stack:
         if cfg.via_actor:
             assert cfg.rs_address is not None

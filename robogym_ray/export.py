@@ -15,7 +15,7 @@ from __future__ import annotations
 import argparse
 import json
 import re
-from dataclasses import asdict, dataclass
+from dataclasses import MISSING, asdict, dataclass, fields
 from pathlib import Path
 from typing import Any
 
@@ -23,8 +23,10 @@ import numpy as np
 import torch
 from torch import nn
 
+from robogym_ray.config import check_fields, quote, read_json
 from robogym_ray.errors import ConfigError
 from robogym_ray.learner.checkpoint import policy_weights, read
+from robogym_ray.text import clip_text
 
 FORMAT = "robogym-ray-policy/torchscript-v1"
 
@@ -59,14 +61,20 @@ def policy_from_state_dict(state: dict[str, torch.Tensor]) -> tuple[nn.Module, P
         if match is None:
             continue
         layers[int(match.group(1))] = value
+    if not all(isinstance(w, torch.Tensor) for w in layers.values()):
+        raise ConfigError("not a policy state dict: a net.<i>.weight that is not a tensor")
     linear = [w for _, w in sorted(layers.items()) if w.dim() == 2]
     if not linear:
-        raise ConfigError(f"not a policy state dict: no net.<i>.weight matrices in {sorted(state)}")
+        keys = quote(sorted(map(str, state))) if isinstance(state, dict) else quote(state)
+        raise ConfigError(f"not a policy state dict: no net.<i>.weight matrices in {keys}")
     layer_norm = any(w.dim() == 1 for w in layers.values())
     hidden = tuple(int(w.shape[0]) for w in linear[:-1])
     obs_dim, act_dim = int(linear[0].shape[1]), int(linear[-1].shape[0])
-    policy = Policy(obs_dim, act_dim, hidden, layer_norm)
-    policy.load_state_dict(state)
+    try:
+        policy = Policy(obs_dim, act_dim, hidden, layer_norm)
+        policy.load_state_dict(state)
+    except (RuntimeError, ValueError, TypeError) as exc:  # shapes that make no policy
+        raise ConfigError(f"not a policy state dict: {clip_text(str(exc), 300)}") from None
     policy.eval().requires_grad_(False)
     return policy, PolicyInfo(obs_dim, act_dim, hidden, layer_norm)
 
@@ -90,8 +98,10 @@ def env_id_of_run(checkpoint: str | Path) -> str | None:
     """The env id of the training run a ``RUN/checkpoints/learner.pt`` belongs to, if known."""
     config = Path(checkpoint).resolve().parent.parent / "config.json"
     try:
-        task = json.loads(config.read_text())["train"]["task"]
-    except (OSError, ValueError, KeyError, TypeError):
+        task = read_json(config)["train"]["task"]
+    except (ConfigError, KeyError, TypeError):
+        return None
+    if not isinstance(task, str):
         return None
     from robogym_ray.training.presets import resolve_task
 
@@ -107,7 +117,10 @@ def action_bounds(env_id: str) -> tuple[tuple[float, ...], tuple[float, ...]]:
 
     import robogym_ray.envs  # noqa: F401 - registers the ids
 
-    env = gym.make(env_id)
+    try:
+        env = gym.make(env_id)
+    except gym.error.Error as exc:  # an id gymnasium does not know
+        raise ConfigError(f"env id {quote(env_id)}: {clip_text(str(exc), 200)}") from None
     try:
         space = env.action_space
         return tuple(map(float, space.low)), tuple(map(float, space.high))  # type: ignore[attr-defined]
@@ -125,6 +138,8 @@ def export_policy(
     checkpoint: str | Path, out: str | Path, env_id: str | None = None, online: bool = False
 ) -> PolicyInfo:
     """Write the checkpoint's policy as TorchScript to ``out`` plus its sidecar JSON."""
+    if Path(out).is_dir():  # checked before anything is loaded or written
+        raise ConfigError(f"export OUT {out} is a directory; name the file to write")
     policy, info = load_checkpoint_policy(checkpoint, online)
     env_id = env_id or env_id_of_run(checkpoint)
     low, high = action_bounds(env_id) if env_id else (None, None)
@@ -140,17 +155,36 @@ def export_policy(
 
 
 def load_exported(path: str | Path) -> tuple[torch.jit.ScriptModule, PolicyInfo]:
-    """An exported policy and its sidecar."""
-    try:
-        data = json.loads(sidecar_path(path).read_text())
-    except (OSError, ValueError) as exc:
-        raise ConfigError(f"cannot read the sidecar of {path}: {exc}") from None
+    """An exported policy and its sidecar, both checked: the module is run once on zeros and
+    must answer ``(1, act_dim)`` (a ConfigError saying what is wrong, never a traceback)."""
+    sidecar = sidecar_path(path)
+    data = read_json(sidecar, "policy sidecar")
+    if not isinstance(data, dict):
+        raise ConfigError(f"{sidecar}: expected a JSON object, got {quote(data)}")
     if data.get("format") != FORMAT:
-        raise ConfigError(f"{sidecar_path(path)}: format {data.get('format')!r}, expected {FORMAT}")
-    data = {k: tuple(v) if isinstance(v, list) else v for k, v in data.items()}
-    module = torch.jit.load(str(path), map_location="cpu")
-    module.eval()
-    return module, PolicyInfo(**data)
+        raise ConfigError(f"{sidecar}: format {quote(data.get('format'))}, expected {FORMAT}")
+    check_fields(PolicyInfo, data, str(sidecar))
+    missing = sorted(set(_REQUIRED) - set(data))
+    if missing:
+        raise ConfigError(f"{sidecar}: no {', '.join(missing)}")
+    info = PolicyInfo(**{k: tuple(v) if isinstance(v, list) else v for k, v in data.items()})
+    try:
+        module = torch.jit.load(str(path), map_location="cpu")
+        module.eval()
+        with torch.inference_mode():
+            shape = tuple(module(torch.zeros(1, info.obs_dim)).shape)
+    except (OSError, RuntimeError, ValueError) as exc:  # not TorchScript, truncated, mismatched
+        first = (str(exc).strip().splitlines() or [type(exc).__name__])[0].split(". ")[0]
+        raise ConfigError(f"cannot load exported policy {path}: {clip_text(first, 200)}") from None
+    if shape != (1, info.act_dim):
+        raise ConfigError(
+            f"exported policy {path} maps (1, {info.obs_dim}) to {shape}; its sidecar says "
+            f"(1, {info.act_dim})"
+        )
+    return module, info
+
+
+_REQUIRED = [f.name for f in fields(PolicyInfo) if f.default is MISSING]
 
 
 class PolicyFunction:

@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from robogym_ray.errors import ConfigError
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("name", help="The real robot's name (its actor's name).")
@@ -19,9 +21,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import ray  # lazy: `robogym-ray --help` must not import Ray
 
+    from robogym_ray.config import check_ray_address
     from robogym_ray.distributed.local_ray import join_ray
     from robogym_ray.distributed.remote import NAMESPACE, get_real_robot
 
+    if not args.name.strip():
+        raise ConfigError("resume NAME: empty; name the real robot (its actor's name)")
+    check_ray_address(args.ray_address, "--ray-address")  # before Ray is asked to join it
     join_ray(args.ray_address, namespace=NAMESPACE, logging_level="ERROR")
     try:
         robot = get_real_robot(args.name)

@@ -10,21 +10,28 @@ with the replay, when kept, beside it as ``learner.pt.replay.npz`` (``replay_pat
 arrays only, loaded without pickle. A policy file (``policy-best.pt``, snapshot selection) has
 the same ``nets.policy`` and nothing else of the learner, so ``evaluate`` and ``export`` read
 both alike (``policy_weights``). Every file is written to a temporary name and renamed, so a
-crash never leaves half a file.
+crash never leaves half a file; a write that fails (a full disk: ``DiskWriteError``) removes
+the temporary one and leaves the file that was there.
 """
 
 from __future__ import annotations
 
+import errno
+import io
 import json
 import os
-from collections.abc import Mapping
+import pickle
+import warnings
+import zipfile
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager, suppress
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import torch
 
-from robogym_ray.errors import ConfigError
+from robogym_ray.errors import ConfigError, DiskWriteError
 
 CHECKPOINT_NAME = "learner.pt"
 """The learner's checkpoint in a run's ``checkpoints/`` folder."""
@@ -40,25 +47,117 @@ def replay_path(checkpoint: str | os.PathLike) -> Path:
     return Path(f"{checkpoint}{REPLAY_SUFFIX}")
 
 
-def write_atomic(path: str | os.PathLike, state: Mapping[str, Any]) -> Path:
-    """``torch.save`` to a temporary name beside ``path``, then rename it into place."""
+def write_atomic(
+    path: str | os.PathLike, state: Mapping[str, Any], what: str = "checkpoint"
+) -> Path:
+    """``torch.save`` to a temporary name beside ``path``, then rename it into place; see
+    ``write_bytes`` for what a failure leaves."""
+    buffer = io.BytesIO()
+    # Serialized in memory: torch's own file writer turns a full disk into a RuntimeError
+    # ("unexpected pos", "basic_ios::clear: iostream error") that has lost the errno.
+    torch.save(dict(state), buffer)
+    return write_bytes(path, buffer.getbuffer(), what)
+
+
+def write_bytes(path: str | os.PathLike, data: bytes | memoryview, what: str) -> Path:
+    """``data`` to a temporary name beside ``path``, synced, then renamed into place.
+
+    On any failure the temporary file is removed and ``path`` is untouched; an OSError (a full
+    disk) becomes a ``DiskWriteError`` naming ``what`` and ``path``.
+    """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    torch.save(dict(state), tmp)
-    os.replace(tmp, path)
+    with _replacing(path, what) as tmp, open(tmp, "wb") as f:
+        f.write(data)
+        f.flush()
+        os.fsync(f.fileno())  # a write error that shows only on flush surfaces before the rename
     return path
+
+
+@contextmanager
+def _replacing(path: Path, what: str) -> Iterator[Path]:
+    """Yields a temporary name beside ``path`` to write; renames it to ``path`` after the block,
+    removes it when the block (or the rename) fails."""
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        yield tmp
+        os.replace(tmp, path)
+    except BaseException as exc:
+        with suppress(OSError):
+            tmp.unlink(missing_ok=True)
+        if isinstance(exc, OSError):
+            raise DiskWriteError.of(what, path, exc) from None
+        raise
 
 
 def read(path: str | os.PathLike, device: str | torch.device = "cpu") -> dict[str, Any]:
     """A checkpoint or policy file (tensors only: ``weights_only``), or a ConfigError."""
     try:
-        state = torch.load(path, map_location=device, weights_only=True)
-    except (OSError, RuntimeError, EOFError, ValueError) as exc:
-        raise ConfigError(f"cannot read checkpoint {path}: {exc}") from None
+        if os.path.getsize(path) == 0:
+            raise EOFError("empty file (0 bytes)")
+        # torch warns about some pickle protocols on the way; the error below says it all.
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            state = torch.load(path, map_location=device, weights_only=True)
+    except (OSError, RuntimeError, EOFError, ValueError, pickle.UnpicklingError) as exc:
+        raise ConfigError(f"cannot read checkpoint {path}: {_why_unreadable(exc)}") from None
     if not isinstance(state, dict) or not isinstance(state.get("nets"), dict):
         raise ConfigError(f"{path} is not a D4PGLearner checkpoint (no nets)")
     return state
+
+
+def _why_unreadable(exc: BaseException) -> str:
+    """``torch.load``'s reason in one short line (its own messages run to paragraphs)."""
+    if isinstance(exc, pickle.UnpicklingError):
+        # Also a pickle of Python objects, which weights_only never runs.
+        return "not a torch checkpoint of tensors (wrong format)"
+    first = (str(exc).strip().splitlines() or [type(exc).__name__])[0].split(". ")[0]
+    if isinstance(exc, EOFError):
+        return first if "empty" in first else f"truncated ({first or 'it ends early'})"
+    # PytorchStreamReader on a cut or damaged zip archive: RuntimeError, or EINVAL from a seek
+    # past the end that the archive's directory asked for.
+    if isinstance(exc, RuntimeError) or getattr(exc, "errno", None) == errno.EINVAL:
+        return f"truncated or corrupt ({first[:200]})"
+    return first[:200]
+
+
+LEARNER_KEYS = ("nets.policy", "nets.critic", "nets.target_policy", "nets.target_critic",
+                "opts.policy", "opts.critic", "num_steps", "torch_rng")  # fmt: skip
+"""What ``D4PGLearner.restore`` reads of a learner checkpoint (``learner_state`` writes)."""
+
+
+def check_learner_state(state: Mapping[str, Any], path: str | os.PathLike) -> None:
+    """ConfigError naming what a learner checkpoint lacks (a policy file has only nets.policy)."""
+    missing = []
+    for key in LEARNER_KEYS:
+        node: Any = state
+        for part in key.split("."):
+            node = node.get(part) if isinstance(node, Mapping) else None
+        if node is None:
+            missing.append(key)
+    if missing:
+        raise ConfigError(f"{path} is not a complete learner checkpoint: no {', '.join(missing)}")
+    rng, steps = state["torch_rng"], state["num_steps"]
+    if not isinstance(rng, torch.Tensor) or rng.shape != torch.get_rng_state().shape:
+        raise ConfigError(f"{path}: torch_rng is not a torch RNG state")
+    if isinstance(steps, bool) or not isinstance(steps, int) or steps < 0:
+        raise ConfigError(f"{path}: num_steps = {str(steps)[:40]}; expected an integer >= 0")
+
+
+def check_replay(path: str | os.PathLike) -> None:
+    """ConfigError unless ``path`` is a replay file ``read_replay`` can load: a readable
+    archive with every array (the directory only is read, not the arrays)."""
+    from robogym_ray.learner.replay import FIELDS
+
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            names = set(data.files) if hasattr(data, "files") else set()
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+        reason = (str(exc).strip().splitlines() or [type(exc).__name__])[0][:200]
+        raise ConfigError(f"cannot read replay {path}: {reason}") from None
+    missing = sorted({*FIELDS, "priorities", "counters", "max_priority", _RNG_KEY} - names)
+    if missing:
+        raise ConfigError(f"{path} is not a replay file: no {', '.join(missing)}")
 
 
 def policy_weights(state: Mapping[str, Any], online: bool = False) -> tuple[str, dict]:
@@ -74,7 +173,7 @@ def policy_weights(state: Mapping[str, Any], online: bool = False) -> tuple[str,
 def write_policy(path: str | os.PathLike, weights: Mapping[str, np.ndarray], **extra: Any) -> Path:
     """A policy file: ``nets.policy`` from numpy ``weights``, plus ``extra`` entries."""
     nets = {"policy": {k: torch.from_numpy(np.array(v)) for k, v in weights.items()}}
-    return write_atomic(path, {"nets": nets, **extra})
+    return write_atomic(path, {"nets": nets, **extra}, what="policy file")
 
 
 def learner_state(learner: Any) -> dict[str, Any]:
@@ -90,10 +189,15 @@ def learner_state(learner: Any) -> dict[str, Any]:
 
 
 def write_replay(path: str | os.PathLike, replay_state: Mapping[str, Any]) -> None:
+    """The replay's arrays to ``path`` (atomically, like ``write_bytes``: on a failure, no
+    temporary file and the old ``path`` untouched)."""
     arrays = dict(replay_state)
     arrays[_RNG_KEY] = np.array(json.dumps(arrays[_RNG_KEY]))
-    with open(path, "wb") as f:  # np.savez would append .npz to a name without it
-        np.savez(f, **arrays)
+    # Streamed to the file, not through memory: a replay can be gigabytes.
+    with _replacing(Path(path), "replay") as tmp, open(tmp, "wb") as f:
+        np.savez(f, **arrays)  # to an open file: np.savez would append .npz to a bare name
+        f.flush()
+        os.fsync(f.fileno())
 
 
 def read_replay(path: str | os.PathLike) -> dict[str, Any]:

@@ -29,7 +29,7 @@ from robogym_ray.errors import InvalidStateError
 from robogym_ray.robots.base import SimRobot, StateRequest
 from robogym_ray.robots.objects import ObjectTrajectory, build_trajectory, parked
 from robogym_ray.robots.sim import PyBulletWorld, Vec3
-from robogym_ray.robots.validation import preview
+from robogym_ray.text import preview
 
 LIMIT_TOLERANCE = 1e-4
 """Slack on position limits (rad): float32 on the wire rounds a limit such as 2*pi, pi or 2.8973

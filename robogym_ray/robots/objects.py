@@ -20,7 +20,8 @@ from scipy.interpolate import splev, splprep
 from scipy.signal import sawtooth
 
 from robogym_ray.errors import InvalidStateError
-from robogym_ray.robots.validation import check_range, quote
+from robogym_ray.robots.validation import check_range
+from robogym_ray.text import quote
 
 SAMPLE_RATE = 100.0
 """Samples per second of every trajectory."""

@@ -35,7 +35,7 @@ from robogym_ray.robots.base import SimRobot, StateRequest, StateSnapshot
 from robogym_ray.robots.command_handler import CommandHandler
 from robogym_ray.robots.registry import make_robot
 from robogym_ray.robots.state_buffer import StateBuffer
-from robogym_ray.robots.validation import clip_text
+from robogym_ray.text import clip_text
 
 if TYPE_CHECKING:
     from robogym_ray.robots.emulation import EmulationConfig

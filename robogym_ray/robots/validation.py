@@ -4,26 +4,17 @@ Robot servers face any client on the network, so what a client sends must neithe
 out of a physically sensible range (a yaw of 3.4e38, an object 3e38 m away, a trajectory one
 period of which needs gigabytes) nor be copied in full into a reply or a log line (a 60 MB key
 list would become 60 MB of log). Robots check with ``check_range`` and quote client text with
-``quote`` / ``preview``; the server cuts every message with ``clip_text``. One place, one shape.
+``robogym_ray.text``'s ``quote`` / ``preview``; the server cuts every message with its
+``clip_text``. One place, one shape.
 """
 
 from __future__ import annotations
 
 import math
-import re
 from collections.abc import Collection, Iterable, Mapping
-from heapq import nsmallest
 
 from robogym_ray.errors import ConfigError, InvalidStateError, RoboGymRayError, UnknownRobotError
-
-MAX_MESSAGE_CHARS = 2000
-"""Longest error message put in a reply or a log line (robo-gym's client prints it whole)."""
-MAX_REASON_CHARS = 500
-"""Longest reason in a one-line reply (``reason``): enough for an option and the known ones."""
-MAX_PREVIEW_ITEMS = 5
-"""Client-sent names (unknown keys ...) quoted in one message; the rest are counted."""
-MAX_PREVIEW_ITEM_CHARS = 80
-"""Characters quoted of each of those names."""
+from robogym_ray.text import quote
 
 
 def check_range(
@@ -118,41 +109,3 @@ def _number(value: float) -> str:
     text = repr(value)
     # A float32 from the wire: 3e38 arrives as 2.9999999521443642e+38; 7 digits is all it holds.
     return text if len(text) <= 12 else f"{value:.7g}"
-
-
-def clip_text(text: str, limit: int = MAX_MESSAGE_CHARS) -> str:
-    """``text`` on one line (no log-line injection), at most ``limit`` characters long."""
-    if len(text) > limit:
-        # Cut before anything else touches the text: it may be megabytes long.
-        kept = max(0, limit - len(f"... [{len(text)} chars cut]"))
-        text = f"{text[:kept]}... [{len(text) - kept} chars cut]"
-    return text.replace("\r", " ").replace("\n", " ")
-
-
-_ANSI_ESCAPE = re.compile(r"\x1b\[[0-9;?]*[ -/]*[@-~]")
-
-
-def reason(text: str, limit: int = MAX_REASON_CHARS) -> str:
-    """The first non-blank line of ``text``, ANSI colour codes removed, clipped to ``limit``.
-
-    For replies to remote clients built from an exception that may carry a whole remote
-    traceback (Ray's errors do, coloured, with paths, PIDs and IPs): the first line says what
-    went wrong; the rest belongs in the log, not on the wire.
-    """
-    head = text[: 100 * limit]  # the first line is near the start; never scan megabytes
-    lines = (line.strip() for line in _ANSI_ESCAPE.sub("", head).splitlines())
-    return clip_text(next((line for line in lines if line), ""), limit)
-
-
-def preview(names: Collection[str]) -> str:
-    """A bounded quote of client-sent names, the first few sorted: ``['a', 'b'] (+3 more)``."""
-    shown = [quote(n) for n in nsmallest(MAX_PREVIEW_ITEMS, names)]
-    more = len(names) - len(shown)
-    return "[" + ", ".join(shown) + "]" + (f" (+{more} more)" if more else "")
-
-
-def quote(name: str) -> str:
-    """``repr(name)`` of at most MAX_PREVIEW_ITEM_CHARS characters of a client-sent name."""
-    if len(name) <= MAX_PREVIEW_ITEM_CHARS:
-        return repr(name)
-    return f"{name[:MAX_PREVIEW_ITEM_CHARS]!r}... [{len(name) - MAX_PREVIEW_ITEM_CHARS} chars cut]"

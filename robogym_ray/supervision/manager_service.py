@@ -21,10 +21,10 @@ from robogym_ray.protocol import server_manager_pb2 as sm
 from robogym_ray.protocol import server_manager_pb2_grpc as sm_grpc
 from robogym_ray.robots.registry import check_options
 from robogym_ray.robots.server import grpc_server, listen
-from robogym_ray.robots.validation import clip_text, reason
 from robogym_ray.supervision.launch import LaunchSpec, parse_launch_cmd
 from robogym_ray.supervision.server_host import ServerSpec
 from robogym_ray.supervision.supervisor import Supervisor
+from robogym_ray.text import clip_text, reason
 
 log = logging.getLogger(__name__)
 

@@ -4,18 +4,19 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any
 
-from robogym_ray.config import add_config_args, merge_config
+from robogym_ray.config import add_config_args, check_fields, merge_config, quote, read_json
 from robogym_ray.errors import ConfigError
+from robogym_ray.learner.config import D4PGConfig
 from robogym_ray.robots.emulation import EmulationConfig
 from robogym_ray.training.config import TrainConfig
 
-SECTIONS = ("train", "d4pg", "emulation")
-"""Keys a config file may hold: TrainConfig, D4PGConfig and (for --emulated-workers)
-EmulationConfig fields."""
+SECTIONS = {"train": TrainConfig, "d4pg": D4PGConfig, "emulation": EmulationConfig}
+"""Keys a config file may hold, and the config class whose fields each section holds."""
 
 
 @dataclass(frozen=True)
@@ -56,10 +57,7 @@ def read_sections(path: str | Path, _chain: tuple[Path, ...] = ()) -> dict[str, 
     chain = (*_chain, path.resolve())
     if chain[-1] in _chain:
         raise ConfigError(f"{path}: 'extends' forms a cycle: {' -> '.join(map(str, chain))}")
-    try:
-        data = json.loads(path.read_text())
-    except (OSError, ValueError) as exc:
-        raise ConfigError(f"cannot read config file {path}: {exc}") from None
+    data = read_json(path)
     if not isinstance(data, dict) or set(data) - {*SECTIONS, "extends"}:
         raise ConfigError(
             f"{path}: expected a JSON object with keys among {', '.join(SECTIONS)} and 'extends'"
@@ -67,11 +65,14 @@ def read_sections(path: str | Path, _chain: tuple[Path, ...] = ()) -> dict[str, 
     for name, section in data.items():
         if name != "extends" and not isinstance(section, dict):
             raise ConfigError(f"{path}: section {name!r} must be a JSON object")
+        if name != "extends":
+            # Each file is checked on its own, so an error names the file that holds the key.
+            check_fields(SECTIONS[name], section, f"{path}: {name}")
     base: dict[str, dict[str, Any]] = {name: {} for name in SECTIONS}
     if "extends" in data:
         parent = data["extends"]
         if not isinstance(parent, str) or not parent:
-            raise ConfigError(f"{path}: 'extends' must be a config file name, got {parent!r}")
+            raise ConfigError(f"{path}: 'extends' must be a config file name, got {quote(parent)}")
         try:
             base = read_sections(path.parent / parent, chain)
         except ConfigError as exc:
@@ -90,12 +91,47 @@ def build_config(args: argparse.Namespace) -> TrainSetup:
     )
 
 
+def check_inputs(setup: TrainSetup) -> None:
+    """Everything the run reads, checked before Ray starts or its run directory is made: the
+    task, the D4PG settings, the log directory, the local Ray's CPUs and ``--init-from``."""
+    from robogym_ray.experience.rollout import box_dims, make_gym_env
+    from robogym_ray.learner.checkpoint import CHECKPOINT_NAME
+    from robogym_ray.training import setup as run_setup
+    from robogym_ray.training.presets import d4pg_for, resolve_task
+
+    cfg = setup.train
+    try:
+        preset = resolve_task(cfg.task)
+    except ConfigError as exc:  # its message repeats the name whole: a 1 MB one too
+        raise ConfigError(str(exc).replace(repr(cfg.task), quote(cfg.task))) from None
+    d4pg = d4pg_for(preset, setup.d4pg)
+    logdir = Path(cfg.logdir)
+    for path in (logdir, logdir / cfg.run_name if cfg.run_name else None):
+        if path is not None and path.exists() and not path.is_dir():
+            raise ConfigError(f"--logdir/--run-name: {path} exists and is not a directory")
+    if cfg.address is None:  # the local Ray gets num_cpus, or (at most) all of this machine
+        run_setup.check_resources(cfg, cfg.num_cpus or float(os.cpu_count() or 1))
+    # A re-run whose directory has its own checkpoint ignores --init-from (seed_checkpoint).
+    own = cfg.run_name and (logdir / cfg.run_name / "checkpoints" / CHECKPOINT_NAME).exists()
+    init_from = None if own else cfg.init_from
+    # The file first: probing the env below imports pybullet, whose banner goes to stderr.
+    state = run_setup.read_init_from(init_from) if init_from else None
+    probe = make_gym_env(preset.env_id)()  # dimensions only: it never resets, so no server
+    try:
+        obs_dim, act_dim = box_dims(probe)
+    finally:
+        probe.close()
+    if init_from:
+        run_setup.check_init_from(init_from, d4pg, obs_dim, act_dim, state)
+    else:
+        run_setup.learner_networks(d4pg, obs_dim, act_dim)
+
+
 def run(args: argparse.Namespace) -> int:
-    from robogym_ray.training.presets import resolve_task
     from robogym_ray.training.run import run_training
 
     setup = build_config(args)
-    resolve_task(setup.train.task)  # fail fast, before Ray starts, on a bad task name
+    check_inputs(setup)  # a bad input costs no Ray start and leaves no run directory
     summary = run_training(setup.train, setup.d4pg, setup.emulation)
     print(json.dumps(summary) if args.json else summary_text(summary), flush=True)
     return 0

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from robogym_ray.config import check_address, check_ray_address, quote
 from robogym_ray.errors import ConfigError
 
 SIM_PATHS = ("inprocess", "grpc")
@@ -181,13 +182,20 @@ class TrainConfig:
             (self.revisit_pool >= 1, "revisit_pool", ">= 1"),
             (self.revisit_max >= 1, "revisit_max", ">= 1"),
             (self.worker_cpus > 0 and self.learner_cpus > 0, "worker_cpus/learner_cpus", "> 0"),
+            (self.server_cpus > 0, "server_cpus", "> 0"),
+            (self.evaluator_cpus > 0, "evaluator_cpus", "> 0"),
+            (self.num_cpus is None or self.num_cpus > 0, "num_cpus", "> 0 or null"),
+            (self.max_wall_s is None or self.max_wall_s > 0, "max_wall_s", "> 0 or null"),
+            (self.checkpoint_every >= 0, "checkpoint_every", ">= 0 (0 = never)"),
+            (self.log_every_s >= 0, "log_every_s", ">= 0"),
+            (self.learner_gpus >= -1, "learner_gpus", ">= 0, or -1 for one if there is any"),
+            (bool(self.logdir), "logdir", "a directory name"),
         ]
         for ok, name, expected in checks:
             if not ok:
-                raise ConfigError(
-                    f"TrainConfig.{name}={getattr(self, name.split('/')[0])!r}; expected {expected}"
-                )
+                value = quote(getattr(self, name.split("/")[0]))
+                raise ConfigError(f"TrainConfig.{name}={value}; expected {expected}")
         for address in self.real_robot:
-            host, sep, port = address.rpartition(":")
-            if not sep or not host or not port.isdigit() or not 0 < int(port) <= 65535:
-                raise ConfigError(f"--real-robot {address!r} is not HOST:PORT (port 1-65535)")
+            check_address(address, "--real-robot")
+        if self.address is not None:
+            check_ray_address(self.address, "--address")

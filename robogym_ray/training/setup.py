@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 import ray
 
+from robogym_ray.config import quote
 from robogym_ray.distributed import remote
 from robogym_ray.distributed.local_ray import join_ray, start_local_ray
 from robogym_ray.distributed.provider import SupervisorServerProvider
@@ -24,12 +25,13 @@ from robogym_ray.experience.rollout import make_gym_env
 from robogym_ray.learner import checkpoint
 from robogym_ray.learner.checkpoint import CHECKPOINT_NAME, replay_path
 from robogym_ray.learner.config import D4PGConfig
-from robogym_ray.learner.learner import linear_ramp
+from robogym_ray.learner.learner import linear_ramp, make_adam
 from robogym_ray.learner.networks import DistributionalCritic, Policy
 from robogym_ray.realrobot.safety import safety_for
 from robogym_ray.robots.emulation import EmulationConfig
 from robogym_ray.supervision.restart_policy import FaultCause
 from robogym_ray.supervision.supervisor import SupervisorConfig
+from robogym_ray.text import clip_text
 from robogym_ray.training.config import TrainConfig
 
 log = logging.getLogger(__name__)
@@ -71,9 +73,13 @@ def revisits_for(cfg: TrainConfig, index: int) -> FailedStartRevisits | None:
     )
 
 
-def check_resources(cfg: TrainConfig) -> None:
-    """Fail fast when the actors cannot all be scheduled (they would wait forever otherwise)."""
-    available = ray.cluster_resources().get("CPU", 0.0)
+def check_resources(cfg: TrainConfig, available: float | None = None) -> None:
+    """Fail fast when the actors cannot all be scheduled (they would wait forever otherwise).
+
+    ``available``: the CPUs to fit in (default: the joined Ray cluster's).
+    """
+    if available is None:
+        available = float(ray.cluster_resources().get("CPU", 0.0))
     demand = cfg.cpu_demand()
     if demand > available + 1e-9:
         raise ConfigError(
@@ -160,39 +166,88 @@ def start_supervision(cfg: TrainConfig, env_id: str, run_name: str) -> Supervisi
     return Supervision(actor, name, owned=True, resources=resources)
 
 
+def learner_networks(
+    d4pg: D4PGConfig, obs_dim: int, act_dim: int
+) -> tuple[Policy, DistributionalCritic]:
+    """The learner's two network classes for these settings, on CPU (a ConfigError for sizes
+    torch refuses, e.g. a hidden layer of -5 units).
+
+    Only these: a whole D4PGLearner would allocate its replay and set torch's threads, seed and
+    denormal mode in this (driver) process.
+    """
+    try:
+        policy = Policy(obs_dim, act_dim, d4pg.policy_hidden, d4pg.layer_norm)
+        critic = DistributionalCritic(
+            obs_dim, act_dim, d4pg.critic_hidden, d4pg.num_atoms, d4pg.layer_norm
+        )
+    except (RuntimeError, ValueError, TypeError) as exc:
+        raise ConfigError(
+            f"d4pg: no networks of policy_hidden={quote(d4pg.policy_hidden)}, "
+            f"critic_hidden={quote(d4pg.critic_hidden)}: {clip_text(str(exc), 200)}"
+        ) from None
+    return policy, critic
+
+
+def read_init_from(init_from: str) -> dict[str, Any]:
+    """The learner checkpoint ``init_from``, checked as a file (readable, complete, its replay
+    readable); what needs the task's dimensions is ``check_init_from``'s."""
+    source = Path(init_from)
+    if not source.is_file():
+        raise ConfigError(f"--init-from {init_from}: no such checkpoint file")
+    state = checkpoint.read(source)
+    checkpoint.check_learner_state(state, source)
+    if replay_path(source).is_file():
+        checkpoint.check_replay(replay_path(source))
+    return state
+
+
+def check_init_from(
+    init_from: str,
+    d4pg: D4PGConfig,
+    obs_dim: int,
+    act_dim: int,
+    state: dict[str, Any] | None = None,
+) -> dict[str, Any]:
+    """The learner checkpoint ``init_from`` (``state``: already read by ``read_init_from``),
+    loaded into this run's networks and optimisers as the learner will, on CPU and writing
+    nothing: a bad file fails before Ray starts, in one line, not in a learner actor that
+    crashes and restarts."""
+    if state is None:
+        state = read_init_from(init_from)
+    policy, critic = learner_networks(d4pg, obs_dim, act_dim)
+    nets = state["nets"]
+    try:
+        for name in ("policy", "target_policy", "policy_average"):
+            if name in nets:
+                policy.load_state_dict(nets[name])
+        for name in ("critic", "target_critic"):
+            critic.load_state_dict(nets[name])
+        make_adam(policy.parameters(), d4pg.policy_lr).load_state_dict(state["opts"]["policy"])
+        make_adam(critic.parameters(), d4pg.critic_lr).load_state_dict(state["opts"]["critic"])
+    except Exception as exc:  # noqa: BLE001 - any failure means "not a checkpoint for this run"
+        raise ConfigError(
+            f"--init-from {init_from}: not a D4PG checkpoint for obs_dim={obs_dim}, "
+            f"act_dim={act_dim}, policy_hidden={list(d4pg.policy_hidden)}, "
+            f"critic_hidden={list(d4pg.critic_hidden)}, num_atoms={d4pg.num_atoms}, "
+            f"layer_norm={d4pg.layer_norm} ({type(exc).__name__}: {clip_text(str(exc), 300)})"
+        ) from None
+    return state
+
+
 def seed_checkpoint(
     init_from: str, checkpoint_dir: Path, d4pg: D4PGConfig, obs_dim: int, act_dim: int
 ) -> bool:
     """Copy ``init_from`` (and its replay) into ``checkpoint_dir`` for the learner to restore.
 
-    Checked here, in the driver, so a checkpoint of another task or network size fails with one
-    clear error instead of a learner actor that crashes and restarts. Returns False (and copies
-    nothing) when the run already has its own checkpoint, e.g. a re-run of the same command.
+    Checked (``check_init_from``) before anything is copied. Returns False (and copies nothing)
+    when the run already has its own checkpoint, e.g. a re-run of the same command.
     """
     target = checkpoint_dir / CHECKPOINT_NAME
     if target.exists():
         log.warning("%s exists; --init-from %s is not used", target, init_from)
         return False
     source = Path(init_from)
-    if not source.is_file():
-        raise ConfigError(f"--init-from {init_from}: no such checkpoint file")
-    # The learner's two network classes only: a whole D4PGLearner would allocate its replay and
-    # set torch's threads, seed and denormal mode in this (driver) process.
-    policy = Policy(obs_dim, act_dim, d4pg.policy_hidden, d4pg.layer_norm)
-    critic = DistributionalCritic(
-        obs_dim, act_dim, d4pg.critic_hidden, d4pg.num_atoms, d4pg.layer_norm
-    )
-    try:
-        state = checkpoint.read(source)
-        policy.load_state_dict(state["nets"]["policy"])
-        critic.load_state_dict(state["nets"]["critic"])
-    except Exception as exc:  # noqa: BLE001 - any failure means "not a checkpoint for this run"
-        raise ConfigError(
-            f"--init-from {init_from}: not a D4PG checkpoint for obs_dim={obs_dim}, "
-            f"act_dim={act_dim}, policy_hidden={list(d4pg.policy_hidden)}, "
-            f"critic_hidden={list(d4pg.critic_hidden)}, num_atoms={d4pg.num_atoms}, "
-            f"layer_norm={d4pg.layer_norm} ({type(exc).__name__}: {exc})"
-        ) from exc
+    state = check_init_from(init_from, d4pg, obs_dim, act_dim)
     checkpoint_dir.mkdir(parents=True, exist_ok=True)
     shutil.copy2(source, target)
     if replay_path(source).is_file():

@@ -76,7 +76,8 @@ def test_pairs_by_seed_across_files_and_refuses_mismatches(tmp_path: Path) -> No
 def test_script_reproduces_the_documented_comparison(
     tmp_path: Path, capsys: pytest.CaptureFixture
 ) -> None:
-    # docs/results-log.md: (256, 256) vs (400, 300) nets, 300 simulation episodes: 284 / 6 / 6, p = 1.
+    # docs/results-log.md: (256, 256) vs (400, 300) nets, 300 simulation episodes:
+    # 284 / 6 / 6, p = 1.
     new, old = RESULTS / "navigation-average-256-100min", RESULTS / "navigation-average-100min"
     argv = [str(new / "sim"), str(new / "sim-1100"), "--vs", str(old / "sim"),
             str(old / "sim-1100"), "--json", str(tmp_path / "c.json")]  # fmt: skip

@@ -21,7 +21,7 @@ from robogym_ray.robots.server import (
     RobotServerHandle,
     start_robot_server,
 )
-from robogym_ray.robots.validation import MAX_MESSAGE_CHARS, clip_text, preview
+from robogym_ray.text import MAX_MESSAGE_CHARS, clip_text, preview
 
 LOGGER = "robogym_ray.robots.server"
 JOINTS = ("base", "shoulder", "elbow", "wrist_1", "wrist_2", "wrist_3")

@@ -11,7 +11,8 @@ from robogym_ray.robots.command_handler import CommandHandlerConfig
 from robogym_ray.robots.mir100.card import ACCELERATION, VELOCITY
 from robogym_ray.robots.mir100.drive import DriveLimits
 from robogym_ray.robots.mir100.scenes import check_scene, scene_for_world
-from robogym_ray.robots.validation import parse_option_number, preview
+from robogym_ray.robots.validation import parse_option_number
+from robogym_ray.text import preview
 
 LASER_CASTERS = ("boxes", "bullet")
 """Ray casters ``Mir100Config.laser_caster`` accepts (see ``lasers``)."""

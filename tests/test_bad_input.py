@@ -1,0 +1,264 @@
+"""Bad input to any command: one ``error:`` line naming the file or key, exit code 2, and nothing
+started or written first (no Ray, no run directory).
+
+Issue "Hardening, second round", part 3: random bytes or a cut TorchScript file gave tracebacks,
+an empty ``--init-from`` "cannot read checkpoint ...: " with no reason (after Ray had started
+and the run directory was made), and config values of the wrong type crashed once Ray was up.
+The commands run in this process (``cli.main``); ``capfd`` sees stderr at the file-descriptor
+level, so a library's own print (torch's warnings) would count as a second line too.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import ray
+import torch
+
+from robogym_ray.cli import main
+from robogym_ray.learner.checkpoint import replay_path
+from robogym_ray.learner.config import D4PGConfig
+from robogym_ray.learner.learner import D4PGLearner
+from robogym_ray.learner.networks import Policy
+from robogym_ray.training import setup as run_setup
+
+PENDULUM = dict(policy_hidden=(256, 256), critic_hidden=(256, 256))  # the pendulum preset's
+
+
+def fails(capfd: pytest.CaptureFixture, *argv: str) -> str:
+    """Run ``robogym-ray ARGV``; the one stderr line it must print (exit code 2, no Ray)."""
+    capfd.readouterr()
+    assert main(list(argv)) == 2
+    err = capfd.readouterr().err
+    assert not ray.is_initialized()
+    lines = err.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: "), err[:2000]
+    return lines[0]
+
+
+def train_fails(capfd: pytest.CaptureFixture, logdir: Path, *argv: str) -> str:
+    line = fails(capfd, "train", "--logdir", str(logdir), "--total-steps", "10", *argv)
+    assert not logdir.exists() or not any(logdir.iterdir())  # no run directory
+    return line
+
+
+def learner_file(path: Path, obs_dim: int, act_dim: int, **d4pg: object) -> Path:
+    """A real (untrained) learner's checkpoint, as training writes it."""
+    cfg = D4PGConfig(replay_capacity=256, batch_size=8, **d4pg)  # type: ignore[arg-type]
+    D4PGLearner(cfg, obs_dim, act_dim, seed=0).save(path)
+    return path
+
+
+def exported_policy(tmp_path: Path) -> Path:
+    """A real exported navigation policy (TorchScript and its sidecar)."""
+    out = tmp_path / "policy.ts"
+    policy = Policy(20, 2, (16,), False).eval()
+    torch.jit.trace(policy, torch.zeros(1, 20)).save(str(out))
+    sidecar = {"obs_dim": 20, "act_dim": 2, "policy_hidden": [16], "layer_norm": False,
+               "env_id": "RoboGymRay/ObstacleAvoidanceMir100Sim-v0",
+               "format": "robogym-ray-policy/torchscript-v1"}  # fmt: skip
+    Path(f"{out}.json").write_text(json.dumps(sidecar))
+    return out
+
+
+# -- checkpoint and policy files ---------------------------------------------------------------
+def test_evaluate_random_bytes(tmp_path: Path, capfd: pytest.CaptureFixture) -> None:
+    bad = tmp_path / "random.pt"
+    bad.write_bytes(bytes(range(256)) * 16)  # was: an UnpicklingError traceback
+    line = fails(capfd, "evaluate", str(bad), "--episodes", "1")
+    assert str(bad) in line and "wrong format" in line
+
+
+def test_evaluate_empty_and_truncated_checkpoints(
+    tmp_path: Path, capfd: pytest.CaptureFixture
+) -> None:
+    empty = tmp_path / "empty.pt"
+    empty.touch()
+    assert "empty file" in fails(capfd, "evaluate", str(empty))
+    good = learner_file(tmp_path / "learner.pt", 20, 2, policy_hidden=(16,), critic_hidden=(16,))
+    cut = tmp_path / "cut.pt"
+    cut.write_bytes(good.read_bytes()[: good.stat().st_size // 2])
+    assert "truncated or corrupt" in fails(capfd, "evaluate", str(cut))
+
+
+def test_evaluate_corrupt_exported_policy(tmp_path: Path, capfd: pytest.CaptureFixture) -> None:
+    out = exported_policy(tmp_path)
+    out.write_bytes(out.read_bytes()[:300])  # was: a RuntimeError traceback
+    line = fails(capfd, "evaluate", str(out), "--episodes", "1")
+    assert line.startswith(f"error: cannot load exported policy {out}: ")
+    line = fails(capfd, "run-policy", "--policy", str(out), "--rs-address", "127.0.0.1:1")
+    assert "cannot load exported policy" in line
+
+
+def test_exported_policy_sidecar_is_checked(tmp_path: Path, capfd: pytest.CaptureFixture) -> None:
+    out = exported_policy(tmp_path)
+    sidecar = Path(f"{out}.json")
+    data = json.loads(sidecar.read_text())
+    sidecar.write_text(json.dumps({**data, "obs_dim": "20"}))
+    assert f"{sidecar}.obs_dim = '20'; expected an integer" in fails(capfd, "evaluate", str(out))
+    sidecar.write_text(json.dumps({**data, "act_dim": 3}))  # the module answers 2 actions
+    assert "sidecar says (1, 3)" in fails(capfd, "evaluate", str(out))
+    sidecar.write_text("[" * 100_000)
+    assert "nested too deeply" in fails(capfd, "evaluate", str(out))
+
+
+def test_export_of_a_bad_checkpoint_writes_nothing(
+    tmp_path: Path, capfd: pytest.CaptureFixture
+) -> None:
+    bad, out = tmp_path / "bad.pt", tmp_path / "out" / "policy.ts"
+    bad.write_bytes(b"\x00" * 100)
+    assert "wrong format" in fails(capfd, "export", str(bad), str(out))
+    assert not (tmp_path / "out").exists()
+    good = learner_file(tmp_path / "learner.pt", 20, 2, policy_hidden=(16,), critic_hidden=(16,))
+    (tmp_path / "dir").mkdir()
+    assert "is a directory" in fails(capfd, "export", str(good), str(tmp_path / "dir"))
+
+
+@pytest.mark.parametrize(
+    ("content", "reason"),
+    [
+        (b"", "empty file (0 bytes)"),  # was: "cannot read checkpoint ...: " and nothing more
+        (bytes(range(256)), "not a torch checkpoint of tensors (wrong format)"),
+        (b"PK\x03\x04" + b"\x00" * 64, "truncated or corrupt"),
+    ],
+)
+def test_train_init_from_unreadable_file(
+    tmp_path: Path, capfd: pytest.CaptureFixture, content: bytes, reason: str
+) -> None:
+    source = tmp_path / "learner.pt"
+    source.write_bytes(content)
+    line = train_fails(capfd, tmp_path / "runs", "--init-from", str(source))
+    assert line == f"error: cannot read checkpoint {source}: {reason}" or reason in line
+
+
+def test_train_init_from_incomplete_or_mismatched_checkpoint(
+    tmp_path: Path, capfd: pytest.CaptureFixture
+) -> None:
+    runs = tmp_path / "runs"
+    policy_only = tmp_path / "policy.pt"
+    torch.save({"nets": {"policy": {}}}, policy_only)
+    line = train_fails(capfd, runs, "--task", "pendulum", "--init-from", str(policy_only))
+    assert f"{policy_only} is not a complete learner checkpoint: no nets.critic" in line
+    small = learner_file(tmp_path / "small.pt", 3, 1, policy_hidden=(16,), critic_hidden=(16,))
+    line = train_fails(capfd, runs, "--task", "pendulum", "--init-from", str(small))
+    assert "not a D4PG checkpoint for obs_dim=3" in line and "size mismatch" in line
+
+
+def test_train_init_from_with_a_broken_replay(tmp_path: Path, capfd: pytest.CaptureFixture) -> None:
+    source = learner_file(tmp_path / "learner.pt", 3, 1, **PENDULUM)  # type: ignore[arg-type]
+    replay_path(source).write_bytes(b"not an archive")
+    line = train_fails(capfd, tmp_path / "runs", "--task", "pendulum", "--init-from", str(source))
+    assert f"cannot read replay {replay_path(source)}" in line
+
+
+def test_a_good_init_from_passes_the_check(tmp_path: Path) -> None:
+    source = learner_file(tmp_path / "learner.pt", 3, 1, **PENDULUM)  # type: ignore[arg-type]
+    d4pg = D4PGConfig(**PENDULUM)  # type: ignore[arg-type]
+    state = run_setup.check_init_from(str(source), d4pg, 3, 1)
+    assert state["num_steps"] == 0
+
+
+# -- config files ------------------------------------------------------------------------------
+@pytest.mark.parametrize(
+    ("section", "values", "expected"),
+    [
+        ("d4pg", {"policy_hidden": 256}, "d4pg.policy_hidden = 256; expected a list of integers"),
+        ("train", {"seed": "abc"}, "train.seed = 'abc'; expected an integer"),
+        ("train", {"workers": 1.5}, "train.workers = 1.5; expected an integer"),
+        ("train", {"workers": True}, "train.workers = True; expected an integer"),
+        ("train", {"logdir": 5}, "train.logdir = 5; expected a string"),
+        (
+            "train",
+            {"real_robot": "127.0.0.1:50051"},  # was: "--real-robot '1' is not HOST:PORT"
+            "train.real_robot = '127.0.0.1:50051'; expected a list of strings",
+        ),
+        ("emulation", {"latency_ticks": "2"}, "emulation.latency_ticks = '2'; expected an"),
+        ("train", {"max_wall_s": None, "total_steps": None}, "train.total_steps = None"),
+    ],
+)
+def test_config_values_of_the_wrong_type(
+    tmp_path: Path, capfd: pytest.CaptureFixture, section: str, values: dict, expected: str
+) -> None:
+    config = tmp_path / "config.json"
+    config.write_text(json.dumps({section: values}))
+    line = train_fails(capfd, tmp_path / "runs", "--config", str(config))
+    assert line == f"error: {config}: {expected}" or f"{config}: {expected}" in line
+
+
+def test_a_wrong_type_in_a_base_file_names_that_file(
+    tmp_path: Path, capfd: pytest.CaptureFixture
+) -> None:
+    (tmp_path / "base.json").write_text(json.dumps({"train": {"seed": [1]}}))
+    leaf = tmp_path / "leaf.json"
+    leaf.write_text(json.dumps({"extends": "base.json"}))
+    line = train_fails(capfd, tmp_path / "runs", "--config", str(leaf))
+    assert "base.json: train.seed = [1]; expected an integer" in line
+
+
+def test_deeply_nested_config(tmp_path: Path, capfd: pytest.CaptureFixture) -> None:
+    config = tmp_path / "deep.json"
+    config.write_text('{"train": {"task": ' + "[" * 100_000 + "]" * 100_000 + "}}")
+    line = train_fails(capfd, tmp_path / "runs", "--config", str(config))
+    assert line == f"error: cannot read config file {config}: JSON nested too deeply"
+
+
+def test_long_keys_and_values_are_quoted_in_part(
+    tmp_path: Path, capfd: pytest.CaptureFixture
+) -> None:
+    config, runs = tmp_path / "long.json", tmp_path / "runs"
+    config.write_text(json.dumps({"train": {"k" * 1_000_000: 1}}))
+    line = train_fails(capfd, runs, "--config", str(config))
+    assert "unknown field(s) ['kkkk" in line and "chars cut" in line and len(line) < 2000
+    for key in ("task", "sim_path"):
+        config.write_text(json.dumps({"train": {key: "v" * 1_000_000}}))
+        line = train_fails(capfd, runs, "--config", str(config))
+        assert "'vvvv" in line and "chars cut" in line and len(line) < 2000
+
+
+# -- addresses ---------------------------------------------------------------------------------
+def test_addresses_are_checked_before_anything_starts(
+    tmp_path: Path, capfd: pytest.CaptureFixture
+) -> None:
+    assert "--address 'nohost'" in train_fails(capfd, tmp_path / "runs", "--address", "nohost")
+    out = exported_policy(tmp_path)
+    line = fails(capfd, "run-policy", "--policy", str(out), "--rs-address", "robot:port")
+    assert line == "error: --rs-address 'robot:port' is not HOST:PORT (port 1-65535)"
+    line = fails(capfd, "evaluate", str(out), "--rs-address", "robot:70000")
+    assert "--rs-address 'robot:70000'" in line
+    line = fails(capfd, "resume", "arm", "--ray-address", "nowhere")
+    assert line == "error: --ray-address 'nowhere' is not HOST:PORT (port 1-65535)"
+
+
+def test_train_checks_cpus_and_logdir_before_ray(
+    tmp_path: Path, capfd: pytest.CaptureFixture
+) -> None:
+    runs = tmp_path / "runs"
+    line = train_fails(capfd, runs, "--workers", "64", "--num-cpus", "2")
+    assert "reserves" in line and "has 2" in line
+    runs.write_text("a file")
+    line = fails(capfd, "train", "--logdir", str(runs), "--task", "pendulum")
+    assert "exists and is not a directory" in line
+
+
+def test_one_line_in_a_fresh_process(tmp_path: Path) -> None:
+    """The whole process: no torch warning or pybullet banner before the error line."""
+    source = tmp_path / "learner.pt"
+    source.touch()
+    out = subprocess.run(
+        [sys.executable, "-m", "robogym_ray.cli", "train", "--init-from", str(source),
+         "--logdir", str(tmp_path / "runs")],
+        capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert out.returncode == 2
+    assert out.stderr == f"error: cannot read checkpoint {source}: empty file (0 bytes)\n"
+    assert not (tmp_path / "runs").exists()
+
+
+def test_nan_from_the_command_line_is_refused(tmp_path: Path, capfd: pytest.CaptureFixture) -> None:
+    # argparse's float() takes "nan", and NaN passes any `x > 0` written as `not x <= 0`.
+    line = train_fails(capfd, tmp_path / "runs", "--max-wall-s", "nan")
+    assert "max_wall_s = nan; expected a number (not NaN) or null" in line
