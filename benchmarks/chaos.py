@@ -1,15 +1,20 @@
 """Chaos: a navigation training under robot-server, rollout-worker and learner kills (issue 20).
 
-    python benchmarks/chaos.py [--seconds 240] [--server-every 20] [--worker-at 50]
-                               [--learner-at 110] [--snapshot-every 60] [--keep]
+    python benchmarks/chaos.py [--seconds 420] [--server-every 20] [--worker-at 50]
+                               [--learner-at 110] [--after-snapshot 30] [--snapshot-every S]
+                               [--checkpoint-every N] [--keep]
 
-Runs ``run_training`` (navigation, 2 workers, on its own local Ray with 2 CPUs and a fresh
-logdir) for ``--seconds`` of training while background threads SIGKILL, by the PIDs the run's
-actors report: a robot server every ``--server-every`` s, rollout worker 1 once at
-``--worker-at`` s, and the learner once at ``--learner-at`` s (or later, once a replay snapshot
-exists). It prints a markdown report for docs/benchmarks.md: what summary.json counted, the
-replay before and after the learner's restart, and how long each fault took to recover.
-Exits 1 if the run did not finish (no summary.json).
+Runs ``run_training`` (navigation, 2 workers with one supervised robot server each, gRPC path,
+on its own local Ray with 2 CPUs and a fresh logdir) for ``--seconds`` of training while
+background threads SIGKILL, by the PIDs the run's actors report: a robot server every
+``--server-every`` s, rollout worker 1 once at ``--worker-at`` s, and the learner once, at
+``--learner-at`` s or later: ``--after-snapshot`` s after a replay snapshot, with at least one
+regular checkpoint between (as a crash lands in a real run). The cadences default to
+``TrainConfig``'s (a snapshot every 300 s, a checkpoint every 500 learner steps), hence the
+420 s. It prints a markdown report for docs/benchmarks.md: what summary.json counted, the
+snapshot's transitions against what the restarted learner restored, and how long each fault
+took to recover. Exits 1 if the run did not finish (no summary.json) or the restarted learner
+restored fewer transitions than the snapshot before its kill held.
 """
 
 from __future__ import annotations
@@ -35,6 +40,7 @@ import ray
 
 from robogym_ray.distributed.local_ray import start_local_ray
 from robogym_ray.distributed.names import NAMESPACE, SUPERVISOR_NAME
+from robogym_ray.learner.checkpoint import CHECKPOINT_NAME, read_replay, replay_path
 from robogym_ray.training.config import TrainConfig
 from robogym_ray.training.run import run_training
 
@@ -60,6 +66,9 @@ class Chaos:
         self.done = threading.Event()
         self.events: list[dict[str, Any]] = []  # one per kill, filled in by its measurement
         self.replay_before: int | None = None
+        self.snapshot: dict[str, float] | None = None
+        """The replay snapshot the learner was killed after: its transitions, and seconds from
+        it to the kill (checkpoints between: the learner.pt mtime went past it)."""
         self.threads = [
             threading.Thread(target=self._guard, args=(f,), daemon=True)
             for f in (self._servers, self._worker, self._learner)
@@ -171,12 +180,29 @@ class Chaos:
         again = self._wait_for(lambda: worker_pid(f"rollout-{RUN}-{i}-1"))
         self._recovered(event, again)
 
-    # -- the learner, once a replay snapshot exists ---------------------------------------------
+    # -- the learner, a while after a replay snapshot ---------------------------------------------
+    def _snapshot_then_checkpoint(self) -> dict[str, float] | None:
+        """The newest replay snapshot (its transitions and mtime), once ``--after-snapshot``
+        s have passed since it and a regular checkpoint was written after it: a kill right at
+        a snapshot is the best case, and once hid that regular checkpoints deleted it."""
+        checkpoint = self.run_dir / "checkpoints" / CHECKPOINT_NAME
+        replay, seen = replay_path(checkpoint), self.snapshot or {"mtime": 0.0}
+        if replay.exists() and replay.stat().st_mtime != seen["mtime"]:
+            mtime = replay.stat().st_mtime
+            seen = {"mtime": mtime, "transitions": int(read_replay(replay)["counters"][1])}
+        self.snapshot = seen
+        since = time.time() - seen["mtime"]
+        checkpointed = checkpoint.stat().st_mtime - seen["mtime"] >= 1.0  # not the snapshot's own
+        return (
+            seen if seen["mtime"] and checkpointed and since >= self.args.after_snapshot else None
+        )
+
     def _learner(self) -> None:
-        snapshot = self.run_dir / "checkpoints" / "learner.pt.replay.npz"
         self.done.wait(max(0.0, self.args.learner_at - self.elapsed()))
-        if not self._wait_for(snapshot.exists, self.args.seconds):
+        snapshot = self._wait_for(self._snapshot_then_checkpoint, self.args.seconds)
+        if not snapshot:
             return
+        snapshot["before_kill_s"] = time.time() - snapshot["mtime"]
         status = self._wait_for(
             lambda: ray.get(actor(f"learner-{RUN}").status.remote(), timeout=10)
         )
@@ -200,6 +226,14 @@ def seconds(value: float | None) -> str:
     return "not seen" if value is None else f"{value:.2f}"
 
 
+def restored_enough(chaos: Chaos, summary: dict[str, Any] | None) -> bool:
+    """Whether the restarted learner restored at least the snapshot it was killed after."""
+    killed = any(e["fault"] == "learner" for e in chaos.events)
+    if not (summary and killed and chaos.snapshot):
+        return True  # nothing to compare: the report says the learner was not killed
+    return summary["learner_restored_replay"] >= chaos.snapshot["transitions"]
+
+
 def report(chaos: Chaos, summary: dict[str, Any] | None) -> None:
     command = "python " + " ".join(sys.argv)
     print(
@@ -209,6 +243,7 @@ def report(chaos: Chaos, summary: dict[str, Any] | None) -> None:
     )
     if summary:
         restored = summary["learner_restored_replay"]
+        snap = chaos.snapshot or {}
         restarts = ", ".join(f"{k} {v}" for k, v in summary["restarts"].items() if v) or "none"
         rows = [
             ("wall s (training)", str(summary["wall_s"])),
@@ -222,7 +257,10 @@ def report(chaos: Chaos, summary: dict[str, Any] | None) -> None:
             ("`lost_transitions`", summary["lost_transitions"]),
             ("`learner_restored_from_step`", summary["learner_restored_from_step"]),
             ("replay just before the learner kill (its `total_added`)", chaos.replay_before),
+            ("transitions in the replay snapshot before the kill", snap.get("transitions")),
+            ("seconds from that snapshot to the kill", round(snap.get("before_kill_s", -1), 1)),
             ("replay after its restart (`learner_restored_replay`)", restored),
+            ("restored at least the snapshot", "yes" if restored_enough(chaos, summary) else "NO"),
         ]
         print("| quantity | value |\n|---|---|")
         for name, value in rows:  # counters come back as floats from the scalars
@@ -261,12 +299,17 @@ def report(chaos: Chaos, summary: dict[str, Any] | None) -> None:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seconds", type=float, default=240.0, help="max_wall_s of training")
+    defaults = TrainConfig()  # the cadences a user's run has, unless told otherwise
+    parser.add_argument("--seconds", type=float, default=420.0, help="max_wall_s of training")
     parser.add_argument("--server-every", type=float, default=20.0)
     parser.add_argument("--worker-at", type=float, default=50.0)
-    parser.add_argument("--learner-at", type=float, default=110.0)
-    parser.add_argument("--snapshot-every", type=float, default=60.0)
-    parser.add_argument("--checkpoint-every", type=int, default=200)
+    parser.add_argument("--learner-at", type=float, default=110.0, help="not before (s)")
+    parser.add_argument(
+        "--after-snapshot", type=float, default=30.0,
+        help="kill the learner this many s after a replay snapshot (checkpoints between)",
+    )  # fmt: skip
+    parser.add_argument("--snapshot-every", type=float, default=defaults.replay_snapshot_every_s)
+    parser.add_argument("--checkpoint-every", type=int, default=defaults.checkpoint_every)
     parser.add_argument("--keep", action="store_true", help="keep the run directory")
     args = parser.parse_args()
     logdir = tempfile.mkdtemp(prefix="chaos-")
@@ -280,6 +323,8 @@ def main() -> int:
     cfg = TrainConfig(
         task="navigation",
         workers=2,
+        sim_path="grpc",  # supervised robot servers, for the server kills
+        envs_per_worker=1,  # one server per worker, as the server injector rotates over them
         total_steps=10_000_000,  # never reached: --seconds ends the run
         max_wall_s=args.seconds,
         logdir=logdir,
@@ -299,6 +344,7 @@ def main() -> int:
         chaos.stop()
         finished = (Path(logdir) / RUN / "summary.json").exists()
         report(chaos, summary if finished else None)
+        finished = finished and restored_enough(chaos, summary)
     finally:
         ray.shutdown()
         shutil.rmtree(temp_dir, ignore_errors=True)

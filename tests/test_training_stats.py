@@ -42,6 +42,18 @@ def test_all_restarts_adds_the_supervisors_to_the_runs_own() -> None:
     assert s.restarts["hung"] == 1  # the run's own counter is left as it was
 
 
+def test_a_supervised_servers_faults_are_the_supervisors_count_only() -> None:
+    """gRPC path: the supervisor restarted the server and counted it (by its first cause); the
+    worker's client saw the same fault, which is no second restart."""
+    s = RunStats()
+    faults = {"deadline": 1}
+    stats.record(s, RolloutResult(None, [], steps=5, worker=0, faults=faults), supervised=True)
+    total = stats.all_restarts(s, {"hung": 1})
+    assert sum(total.values()) == 1 and total["hung"] == 1
+    stats.record(s, RolloutResult(None, [], steps=5, worker=0, faults=faults))  # in-process
+    assert stats.all_restarts(s, {})["deadline"] == 1
+
+
 def scalars(s: RunStats, **kw) -> dict[str, float]:
     args = dict(
         wall_s=10.0, first_learner_step=100, noise_scale=0.5, weights_versions=[150, 90],

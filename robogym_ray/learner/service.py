@@ -9,10 +9,13 @@ from __future__ import annotations
 import logging
 import os
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager, suppress
 from pathlib import Path
 
 import numpy as np
 
+from robogym_ray.errors import DiskWriteError
 from robogym_ray.learner.checkpoint import CHECKPOINT_NAME, replay_path
 from robogym_ray.learner.config import D4PGConfig
 from robogym_ray.learner.learner import D4PGLearner
@@ -90,6 +93,7 @@ class LearnerService:
             replay_size=float(len(self.learner.replay)),
             inserted=float(self.inserted),
             learner_time_s=self._step_time,
+            pid=float(os.getpid()),  # the driver counts a learner restart once, by its pid
         )
         if (
             self.checkpoint_every
@@ -123,17 +127,19 @@ class LearnerService:
         """
         if self.checkpoint_dir is None:
             return None
-        self.checkpoint_dir.mkdir(parents=True, exist_ok=True)
-        final = self.checkpoint_dir / CHECKPOINT_NAME
+        # Not named ``final``: that is the parameter the replay decision below reads.
+        path = self.checkpoint_dir / CHECKPOINT_NAME
         tmp = self.checkpoint_dir / f".{CHECKPOINT_NAME}.{os.getpid()}.tmp"
-        self.learner.save(tmp, include_replay=include_replay)  # both renamed into place last
-        if include_replay:
-            os.replace(replay_path(tmp), replay_path(final))
-        elif final or self.replay_snapshot_every_s <= 0:
-            replay_path(final).unlink(missing_ok=True)
-        os.replace(tmp, final)
+        with _replacing(path, tmp):
+            self.checkpoint_dir.mkdir(parents=True, exist_ok=True)
+            self.learner.save(tmp, include_replay=include_replay)  # both renamed into place last
+            if include_replay:
+                os.replace(replay_path(tmp), replay_path(path))
+            elif final or self.replay_snapshot_every_s <= 0:
+                replay_path(path).unlink(missing_ok=True)
+            os.replace(tmp, path)
         self._last_checkpoint_step = self.version
-        return str(final)
+        return str(path)
 
     def ping(self) -> int:
         return os.getpid()
@@ -148,3 +154,26 @@ class LearnerService:
             "total_added": int(self.learner.replay.total_added),
             "restored_replay": self.restored_replay,
         }
+
+
+@contextmanager
+def _replacing(path: Path, tmp: Path) -> Iterator[None]:
+    """Around a checkpoint written to ``tmp`` (and its replay) and renamed to ``path``: when
+    anything fails, the temporary files are removed, so a full disk leaves the last good
+    checkpoint and nothing else, and the error (a ``DiskWriteError``) names ``path``, the file
+    a user knows, not the temporary name it failed on."""
+    try:
+        yield
+    except BaseException as exc:
+        for leftover in (tmp, replay_path(tmp)):
+            with suppress(OSError):
+                leftover.unlink(missing_ok=True)
+        if isinstance(exc, DiskWriteError):
+            what, where = "learner checkpoint", path
+            if exc.what == "replay":
+                what, where = "learner replay", replay_path(path)
+            message = f"cannot write {what} {where}: {exc.reason}"
+            raise type(exc)(message, path=str(where), reason=exc.reason, what=what) from None
+        if isinstance(exc, OSError):
+            raise DiskWriteError.of("learner checkpoint", path, exc) from None
+        raise

@@ -1,4 +1,10 @@
-"""The end of a run: the final checkpoint, the last TensorBoard write, and ``summary.json``."""
+"""The end of a run: the final checkpoint, the last TensorBoard write, and ``summary.json``.
+
+A run stopped by a file it could not write (``DiskWriteError``: a full disk under the learner's
+checkpoint, TensorBoard's events or the summary itself) ends here too: no final checkpoint (it
+would fail the same way; the last good one stays), the summary when there is room for it, and
+the error raised again with what was kept, for the command line's one ``error:`` line.
+"""
 
 from __future__ import annotations
 
@@ -7,10 +13,23 @@ from collections.abc import Callable
 from typing import Any
 
 import ray
+from ray.exceptions import RayTaskError
 
+from robogym_ray.errors import DiskWriteError
+from robogym_ray.learner.checkpoint import CHECKPOINT_NAME, write_bytes
 from robogym_ray.training import stats
 from robogym_ray.training.program import Program
 from robogym_ray.training.stats import RunStats
+
+
+def disk_error(exc: RayTaskError) -> DiskWriteError | None:
+    """The ``DiskWriteError`` a remote call (the learner's) failed with, else None.
+
+    Ray raises it wrapped: a ``RayTaskError`` whose message is the remote traceback and whose
+    ``cause`` is the error itself, which has the one line a user needs.
+    """
+    cause = getattr(exc, "cause", None)
+    return cause if isinstance(cause, DiskWriteError) else None
 
 
 def finish(
@@ -19,15 +38,29 @@ def finish(
     logger: Any,
     scalars: Callable[[], dict[str, float]],
     wall: Callable[[], float],
+    failure: DiskWriteError | None = None,
 ) -> dict[str, Any]:
     """Checkpoint (with the replay only under ``save_replay``), write the final scalars and
-    the summary; returns the summary."""
-    checkpoint = ray.get(p.learner.checkpoint.remote(p.cfg.save_replay, final=True))
+    the summary; returns the summary. ``failure``: what stopped the run early; it, or one met
+    here, is raised after the summary is written."""
+    failure = failure or logger.error
+    checkpoint = None
+    if failure is None:
+        try:
+            checkpoint = ray.get(p.learner.checkpoint.remote(p.cfg.save_replay, final=True))
+        except RayTaskError as exc:
+            failure = disk_error(exc)
+            if failure is None:
+                raise
     learner_status = ray.get(p.learner.status.remote())
     wall_s = wall()
     final = scalars()
     logger.write(final, run_stats.env_steps)
     logger.close()
+    failure = failure or logger.error
+    kept = p.run_dir / "checkpoints" / CHECKPOINT_NAME
+    if checkpoint is None and kept.exists():
+        checkpoint = str(kept)  # the last good one, from before the failure
     summary = stats.summary(
         run_stats, final,
         task=p.preset.env_id, wall_s=round(wall_s, 2), checkpoint=checkpoint,
@@ -41,5 +74,20 @@ def finish(
         best_snapshot=None if p.selector is None else p.selector.summary(),
         server_nodes=p.server_nodes(), logdir=str(p.run_dir),
     )  # fmt: skip
-    (p.run_dir / "summary.json").write_text(json.dumps(summary, indent=2))
+    if failure is not None:
+        summary["error"] = str(failure)
+    path = p.run_dir / "summary.json"
+    try:
+        write_bytes(path, json.dumps(summary, indent=2).encode(), "summary")
+    except DiskWriteError as exc:
+        if failure is None:
+            raise exc.also(f"the run itself completed (checkpoint: {checkpoint})") from None
+        raise failure.also(f"{_kept(run_stats, checkpoint)}; {exc}") from None
+    if failure is not None:
+        raise failure.also(f"{_kept(run_stats, checkpoint)}; summary: {path}")
     return summary
+
+
+def _kept(run_stats: RunStats, checkpoint: str | None) -> str:
+    kept = f"the last good checkpoint is kept: {checkpoint}" if checkpoint else "no checkpoint"
+    return f"the run stopped at {run_stats.env_steps} env steps, {kept}"

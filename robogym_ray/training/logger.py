@@ -3,35 +3,69 @@
 from __future__ import annotations
 
 import io
+import threading
 import time
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
 from pathlib import Path
+from typing import Any
 
 from PIL import Image
 from tensorboard.compat.proto.summary_pb2 import Summary
 from torch.utils.tensorboard import SummaryWriter
 from tqdm import tqdm
 
+from robogym_ray.errors import DiskWriteError
+
 
 class RunLogger:
-    """Scalars go to ``run_dir`` (one TensorBoard run per experiment); progress to stderr."""
+    """Scalars go to ``run_dir`` (one TensorBoard run per experiment); progress to stderr.
 
-    def __init__(self, run_dir: Path, total: int, progress: bool = True) -> None:
-        self.writer = SummaryWriter(log_dir=str(run_dir))
+    A TensorBoard write that fails (a full disk) does not raise: TensorBoard stops for this
+    run, ``error`` keeps the first failure and ``stop`` (when given) is set, so the training
+    loop ends the run and reports it in one line rather than a traceback.
+    """
+
+    def __init__(
+        self, run_dir: Path, total: int, progress: bool = True, stop: threading.Event | None = None
+    ) -> None:
+        self.run_dir = run_dir
+        self.error: DiskWriteError | None = None
+        self._stop = stop
+        self.writer: SummaryWriter | None = None
+        _quiet_tensorboard_threads()
+        with self._guarded():
+            self.writer = SummaryWriter(log_dir=str(run_dir))
         self.bar = tqdm(total=total, unit="step", disable=not progress, dynamic_ncols=True)
         self._last_write = 0.0
 
+    @contextmanager
+    def _guarded(self) -> Iterator[None]:
+        try:
+            yield
+        except OSError as exc:
+            if self.error is None:
+                self.error = DiskWriteError.of("TensorBoard events in", self.run_dir, exc)
+            # Not closed: its close flushes, and fails, again. Its thread has ended already.
+            self.writer = None
+            if self._stop is not None:
+                self._stop.set()
+
     def scalar(self, tag: str, value: float, step: int) -> None:
-        self.writer.add_scalar(tag, value, step)
+        if self.writer is not None:
+            with self._guarded():
+                self.writer.add_scalar(tag, value, step)
 
     def gif(self, tag: str, data: bytes, step: int) -> None:
         """An animated GIF as an image summary: TensorBoard's image tab plays it."""
         width, height = Image.open(io.BytesIO(data)).size
         image = Summary.Image(height=height, width=width, colorspace=3, encoded_image_string=data)
-        # add_image would re-encode one frame as PNG; torch's own add_video does this same call.
-        self.writer._get_file_writer().add_summary(
-            Summary(value=[Summary.Value(tag=tag, image=image)]), step
-        )
+        if self.writer is not None:
+            with self._guarded():
+                # add_image would re-encode one frame as PNG; torch's add_video does this call.
+                self.writer._get_file_writer().add_summary(
+                    Summary(value=[Summary.Value(tag=tag, image=image)]), step
+                )
 
     def advance(self, steps: int) -> None:
         self.bar.update(steps)
@@ -43,7 +77,7 @@ class RunLogger:
     def write(self, scalars: Mapping[str, float], step: int) -> None:
         self._last_write = time.monotonic()
         for tag, value in scalars.items():
-            self.writer.add_scalar(tag, value, step)
+            self.scalar(tag, value, step)
         self.bar.set_postfix(
             success=f"{scalars.get('train/success_rate', 0):.2f}",
             ret=f"{scalars.get('train/return_last100', 0):.1f}",
@@ -51,6 +85,29 @@ class RunLogger:
         )
 
     def close(self) -> None:
-        self.writer.flush()
-        self.writer.close()
+        if self.writer is not None:
+            with self._guarded():
+                self.writer.flush()
+                self.writer.close()
         self.bar.close()
+
+
+_quieted = False
+
+
+def _quiet_tensorboard_threads() -> None:
+    """TensorBoard's writer thread keeps a write error (a full disk) for the writer's next call,
+    where ``RunLogger`` handles it, and also raises it, which Python prints as an "Exception in
+    thread" traceback; that print is left out (only for OSErrors of TensorBoard's threads)."""
+    global _quieted
+    if _quieted:
+        return
+    _quieted = True
+    previous = threading.excepthook
+
+    def hook(args: Any) -> None:
+        module = type(args.thread).__module__ if args.thread is not None else ""
+        if not (isinstance(args.exc_value, OSError) and module.startswith("tensorboard.")):
+            previous(args)
+
+    threading.excepthook = hook

@@ -18,17 +18,72 @@ from collections import deque
 from typing import Any
 
 import ray
-from ray.exceptions import OwnerDiedError, RayActorError
+from ray.exceptions import (
+    ActorUnavailableError,
+    GetTimeoutError,
+    OwnerDiedError,
+    RayActorError,
+    RayTaskError,
+)
 
+from robogym_ray.errors import DiskWriteError
 from robogym_ray.experience.rollout import RolloutResult
 from robogym_ray.supervision.restart_policy import FaultCause
 from robogym_ray.training import setup, stats
 from robogym_ray.training.evals import EvalSchedule
-from robogym_ray.training.finish import finish
+from robogym_ray.training.finish import disk_error, finish
 from robogym_ray.training.program import Program
 from robogym_ray.training.stats import RunStats, WorkerSlot
 
 log = logging.getLogger(__name__)
+
+
+class LearnerDeaths:
+    """Counts the learner's deaths, not its failed calls: one death fails every call in flight
+    to it (several workers' batches at once), and a call also fails when the worker that sent
+    it died. A death is a change of the learner's pid (Ray restarted it), seen by asking it
+    after a failed call or in what a call returned."""
+
+    def __init__(self, learner: Any, wait_s: float = 120.0) -> None:
+        self.learner, self.wait_s = learner, wait_s
+        self.count = 0
+        self._dead: set[int | None] = set()
+        self.pid = self._ask()
+
+    def _ask(self) -> int | None:
+        """The learner's pid; waits out a restart (restoring a checkpoint and replay takes
+        seconds). None: it did not answer (dead for good after ``max_restarts``, or slower)."""
+        deadline = time.monotonic() + self.wait_s
+        while True:
+            try:
+                left = max(0.0, deadline - time.monotonic())
+                return int(ray.get(self.learner.ping.remote(), timeout=left))
+            except ActorUnavailableError:  # sent before Ray saw it restart: ask the new one
+                if time.monotonic() >= deadline:
+                    return None
+                time.sleep(0.1)
+            except (RayActorError, GetTimeoutError):
+                return None
+
+    def call_failed(self) -> bool:
+        """A learner call failed; True when that is a death not counted yet."""
+        now = self._ask()
+        if now is not None and now == self.pid:
+            return False  # the death of an earlier pid (counted then), or the sender's
+        return self._died(now)
+
+    def answered(self, pid: int) -> None:
+        """A call returned from ``pid``: a new pid is a death whose calls never failed here."""
+        if pid != self.pid:
+            self._died(pid)
+
+    def _died(self, now: int | None) -> bool:
+        new = self.pid not in self._dead
+        self._dead.add(self.pid)
+        self.count += new
+        if now is not None:  # unanswered: the next failed call asks again
+            self.pid = now
+        return new
 
 
 class TrainingLoop:
@@ -38,17 +93,20 @@ class TrainingLoop:
         self.p, self.cfg = program, program.cfg
         self.stats = RunStats()
         self.weights_ref = program.learner.get_weights.remote()
+        self.learner_deaths = LearnerDeaths(program.learner)
         self.weights_stale = False
         self.evals = EvalSchedule(program, self.stats)
         self.stop = threading.Event()
         """Set (e.g. by a SIGTERM handler) to end the run early, with checkpoint and summary."""
+        self.failure: DiskWriteError | None = None
+        """A file the run could not write (a full disk): it ends the run, without retrying."""
         self._real_deadline: float | None = None
 
     def run(self) -> dict[str, Any]:
         from robogym_ray.training.logger import RunLogger  # imports tensorboard lazily
 
         cfg, p = self.cfg, self.p
-        logger = RunLogger(p.run_dir, total=cfg.total_steps, progress=cfg.progress)
+        logger = RunLogger(p.run_dir, total=cfg.total_steps, progress=cfg.progress, stop=self.stop)
         pending = {self._collect(slot): slot for slot in p.workers}
         learner_calls: deque[Any] = deque()
         self.started = time.perf_counter()
@@ -71,7 +129,8 @@ class TrainingLoop:
                 if slot.alive:
                     pending[self._collect(slot)] = slot
                 continue
-            for ep in stats.record(self.stats, result):
+            supervised = p.supervision is not None and slot.kind == "sim"
+            for ep in stats.record(self.stats, result, supervised):
                 logger.scalar("episode/return", ep.ret, self.stats.env_steps)
                 logger.scalar("episode/length", ep.length, self.stats.env_steps)
             logger.advance(result.steps)
@@ -90,8 +149,9 @@ class TrainingLoop:
             if logger.due(cfg.log_every_s):  # scalars cost a supervisor round trip
                 logger.write(self._scalars(), self.stats.env_steps)
         self._drain_learner(learner_calls, block=True, all_=True)
-        self.evals.final(eval_ref, logger, self._wall())  # the final policy, always evaluated
-        return finish(self.p, self.stats, logger, self._scalars, self._wall)
+        if self.failure is None:  # a run stopped by a full disk reports that, not a policy
+            self.evals.final(eval_ref, logger, self._wall())  # the final policy, evaluated
+        return finish(self.p, self.stats, logger, self._scalars, self._wall, self.failure)
 
     def _done(self, in_flight: int = 0) -> bool:
         """Whether collecting should stop: enough steps (counting those in flight), the wall
@@ -147,11 +207,24 @@ class TrainingLoop:
             try:
                 metrics = ray.get(ref)
             except (RayActorError, OwnerDiedError):  # learner died, or the worker that sent it
-                # The learner died mid-call; Ray restarts it from its checkpoint. This batch
-                # is lost (counted), the next ones go to the restarted learner.
-                self.stats.learner_failures += 1
-                log.warning("learner actor failed; Ray restarts it from its last checkpoint")
+                # This batch is lost (lost_transitions counts it); the next ones go to the
+                # learner Ray restarted from its checkpoint. One death, one failure.
+                if self.learner_deaths.call_failed():
+                    self.stats.learner_failures = self.learner_deaths.count
+                    log.warning("learner actor failed; Ray restarts it from its last checkpoint")
                 continue
+            except RayTaskError as exc:
+                # A checkpoint the learner could not write (a full disk): the next would fail
+                # the same way, so the run stops; finish() reports it.
+                failure = disk_error(exc)
+                if failure is None:
+                    raise
+                self.failure = self.failure or failure
+                self.stop.set()
+                continue
+            if "pid" in metrics:
+                self.learner_deaths.answered(int(metrics.pop("pid")))
+                self.stats.learner_failures = self.learner_deaths.count
             self.stats.learner.update(metrics)
             if metrics.get("steps_this_call", 0) > 0:
                 self.weights_stale = True

@@ -11,6 +11,7 @@ import ray
 
 from robogym_ray.distributed import remote
 from robogym_ray.envs.inprocess import InProcessServerProvider
+from robogym_ray.errors import DiskWriteError
 from robogym_ray.experience.rollout import box_dims, make_gym_env
 from robogym_ray.learner.config import D4PGConfig
 from robogym_ray.robots.emulation import EmulationConfig
@@ -32,7 +33,10 @@ class Program:
         self.run_dir = Path(cfg.logdir) / (
             cfg.run_name or f"{preset.env_id.split('/')[-1]}-{time.strftime('%Y%m%d-%H%M%S')}"
         )
-        self.run_dir.mkdir(parents=True, exist_ok=True)
+        try:
+            self.run_dir.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:  # a full disk: one line, not a traceback
+            raise DiskWriteError.of("run directory", self.run_dir, exc) from None
         setup.check_resources(cfg)
         self.supervision = setup.start_supervision(cfg, preset.env_id, self.run_dir.name)
         self.learner: Any = None

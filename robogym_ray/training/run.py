@@ -17,6 +17,7 @@ from typing import Any
 import ray
 
 from robogym_ray.errors import ConfigError
+from robogym_ray.learner.checkpoint import write_bytes
 from robogym_ray.robots.emulation import EmulationConfig
 from robogym_ray.training import setup
 from robogym_ray.training.config import TrainConfig
@@ -49,7 +50,8 @@ def run_training(
     loop = TrainingLoop(program)
     previous = _stop_on_sigterm(loop)
     try:
-        (program.run_dir / "config.json").write_text(json.dumps(program.config_record(), indent=2))
+        record = json.dumps(program.config_record(), indent=2).encode()
+        write_bytes(program.run_dir / "config.json", record, "run config")  # full: DiskWriteError
         return loop.run()
     finally:
         if previous is not None:

@@ -62,23 +62,28 @@ class RunStats:
     restarts: Counter[str] = field(default_factory=no_restarts)
     """Rebuilds of in-process simulations by cause, as the workers reported them, plus workers
     killed past their deadline (``hung``). The gRPC path's server restarts are the supervisor's
-    count: ``all_restarts`` adds them."""
+    count only (``record(supervised=True)``): ``all_restarts`` adds them."""
     learner: dict[str, float] = field(default_factory=dict)
     eval: dict[str, float] = field(default_factory=dict)
     eval_history: list[dict[str, float]] = field(default_factory=list)
 
 
-def record(stats: RunStats, result: RolloutResult) -> list[Episode]:
+def record(stats: RunStats, result: RolloutResult, supervised: bool = False) -> list[Episode]:
     """Count a worker's result; returns its episodes that count toward the task's rates.
 
     Revisited starts are harder than the task's own, so they are counted apart (``revisits``,
     ``revisit_statuses``) and kept out of ``statuses`` and ``returns``.
+
+    ``supervised``: the worker's servers are the supervisor's (gRPC path). The supervisor
+    restarts them and counts each restart once, by the first cause it saw (often its own probe's
+    ``hung`` before the client's ``deadline``); the worker's ``faults`` are the same restarts
+    seen from the client, so counting them too would count one fault twice.
     """
     stats.env_steps += result.steps
     stats.dropped_steps += result.dropped
     stats.robot_errors += result.robot_errors
     stats.worker_steps[result.worker] = stats.worker_steps.get(result.worker, 0) + result.steps
-    for cause, n in result.faults.items():
+    for cause, n in ({} if supervised else result.faults).items():
         stats.restarts[FaultCause.parse(cause).value] += n
     counted = []
     for ep in result.episodes:
