@@ -221,6 +221,16 @@ class PoseTask(ModularArmTask):
             raise ConfigError(f"random_joint_offset needs {self.lower.size} values, got {offset}")
 
     # -- episode ---------------------------------------------------------------------------
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, StepInfo]:
+        # A seeded reset reproduces its episode (Gymnasium's convention; evaluations pair
+        # policies by reset seed); an unseeded one, as rollout workers reset, continues from
+        # the last pose as 2.1.0 does.
+        if seed is not None:
+            self._continue_from = None
+        return super().reset(seed=seed, options=options)
+
     def _start(self, options: Mapping[str, Any]) -> np.ndarray:
         cfg, last = self.pose_cfg, self._continue_from
         self._continue_from = None

@@ -17,7 +17,7 @@ from robogym_ray.envs.arm_common import ArmTask
 from robogym_ray.envs.base import RobotServerEnv
 from robogym_ray.envs.frames import frame_xyz
 from robogym_ray.envs.render import RenderConfig
-from robogym_ray.envs.render.ur import draw_ur
+from robogym_ray.envs.render.ur import draw_ur, stand_of
 from robogym_ray.errors import ConfigError
 from robogym_ray.protocol import robot_server_pb2 as pb
 from robogym_ray.protocol.client import RobotServerClient
@@ -141,6 +141,7 @@ class URTask(ArmTask):
             target=target,
             objects=[frame_xyz(sd, "object_0")] if moving else [],
             collided=sd.get("in_collision", 0.0) >= 0.5,
+            stand=stand_of(self.server_spec()),  # the scene's ground and tables, where they are
             caption=caption,
         )
 

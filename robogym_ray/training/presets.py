@@ -44,6 +44,7 @@ _PENDULUM = {
 }
 _POSITIONING = {"v_min": -250.0, "v_max": 250.0, "layer_norm": True, "min_replay_size": 500}
 _PANDA_POSITIONING = {**_POSITIONING, "v_min": -5.0, "v_max": 5.0}
+_ISAAC_REACH = {**_POSITIONING, "v_min": -20.0, "v_max": 5.0}
 _NAVIGATION = {"v_min": -300.0, "v_max": 450.0, "layer_norm": True, "min_replay_size": 500}
 
 TASKS: dict[str, TaskPreset] = {
@@ -61,6 +62,12 @@ TASKS: dict[str, TaskPreset] = {
     "panda-positioning": TaskPreset(
         "RoboGymRay/EndEffectorPositioningPandaSim-v0", _PANDA_POSITIONING
     ),
+    # robo-gym 2.1.0's Isaac Lab reach (UR10): the positioning recipe, support fitted to its
+    # returns. Steps cost 0.005/m + 0.05/rad (measured over 30 random, zero and bang-bang
+    # episodes: -0.161 to -0.027; at most ~-0.167 with pi rad off), success +2 and collision -1
+    # end the episode; truncation at 600 steps bootstraps, so the worst value is ~-0.167 x 100
+    # (gamma 0.99) = -16.7 and the best +2: [-20, 5] leaves a margin (atoms 0.5 apart).
+    "isaac-reach-ur10": TaskPreset("RoboGymRay/IsaacReachUR10Sim-v0", _ISAAC_REACH),
     # Pendulum: the preset proven by benchmarks/pendulum.py (the local trainer applies it too).
     "pendulum": TaskPreset("Pendulum-v1", _PENDULUM),
 }

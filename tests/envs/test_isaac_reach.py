@@ -180,9 +180,15 @@ def test_success_at_2_cm_and_0_05_rad_then_the_next_episode_continues():
         _, _, terminated, truncated, info = env.step(offset)
         assert truncated and info["final_status"] == "max_steps_exceeded"
         last = env.unwrapped.joints(env.unwrapped.client.get_state())
-        obs, _ = env.reset(seed=1)
+        obs, _ = env.reset()  # unseeded, as a rollout worker resets
         np.testing.assert_allclose(obs[:6], last - UR10_DEFAULT, atol=1e-4)
         assert obs[0] > 0.01
+        # A seeded reset reproduces its episode: the default pose, whatever came before.
+        env.step(offset)
+        env.unwrapped.max_episode_steps = 1
+        assert env.step(offset)[4]["final_status"] == "max_steps_exceeded"
+        obs, _ = env.reset(seed=1)
+        np.testing.assert_allclose(obs[:6], 0.0, atol=1e-5)
     finally:
         env.close()
 

@@ -220,7 +220,7 @@ def test_success_then_continue_on_success_and_the_step_limit():
         _, reward, terminated, _, info = env.step(hold + [0.002, 0, 0, 0, 0])
         assert terminated and info["final_status"] == "success" and reward == 2.0
         ended = env.unwrapped.joints(env.unwrapped.client.get_state())
-        obs, _ = env.reset(seed=0)  # from where it ended, with a new target
+        obs, _ = env.reset()  # unseeded: from where it ended, with a new target
         np.testing.assert_allclose(obs[3:9], ended / LIMITS, atol=1e-6)
         assert obs[3] != pytest.approx(start[0] / LIMITS[0], abs=1e-6)
         env.step(hold)

@@ -16,11 +16,12 @@ import robogym_ray  # noqa: F401 - registers the ids
 from robogym_ray.envs import SIM_ENV_IDS
 from robogym_ray.envs.render import RenderConfig
 from robogym_ray.envs.render.mir100 import ROBOT
-from robogym_ray.envs.render.ur import TOOL
+from robogym_ray.envs.render.ur import TABLE, TOOL, Stand, draw_ur, stand_of
 from robogym_ray.errors import ConfigError, RenderError
 
 NAV = "RoboGymRay/ObstacleAvoidanceMir100Sim-v0"
 UR10 = "RoboGymRay/EndEffectorPositioningUR10Sim-v0"
+ISAAC_UR10 = "RoboGymRay/IsaacReachUR10Sim-v0"
 
 
 def centroid(frame: np.ndarray, color: tuple[int, int, int]) -> np.ndarray:
@@ -79,6 +80,36 @@ def test_ur_end_effector_region_moves_after_a_joint_move() -> None:
             env.step(base)
         after = centroid(env.render(), TOOL)
         assert np.linalg.norm(after - before) > 40
+    finally:
+        env.close()
+
+
+def test_isaac_reach_ur10_stands_on_the_demo_table_of_its_world() -> None:
+    env = gym.make(ISAAC_UR10, render_mode="rgb_array")
+    try:
+        env.reset(seed=0)
+        frame = env.render()
+        assert frame.shape == (480, 640, 3) and frame.dtype == np.uint8
+        assert (~np.all(frame == frame[-1, -1], axis=2)).sum() > 1000
+        task = env.unwrapped
+        stand = stand_of(task.server_spec())
+        # The isaactabletop world: base_link on the table's top (z:=0.0), its foot 1 m below.
+        (table,) = stand.tables
+        assert table.centre[2] + table.half_extents[2] == pytest.approx(0.0)
+        assert stand.ground_z == pytest.approx(-1.0) and stand.support_z() == pytest.approx(0.0)
+        drawn = draw_ur("ur10", task.joints(task._last_msg), RenderConfig(), stand=stand)
+        assert np.all(drawn == np.array(TABLE, np.uint8), axis=2).sum() > 5000
+    finally:
+        env.close()
+
+
+def test_the_default_stand_is_the_ground_a_tenth_below_base_link() -> None:
+    # The positioning env's launch (empty world, default base height) is the default stand,
+    # so its frames (docs/img/ur10.png) are those drawn before stands existed.
+    env = gym.make(UR10)
+    try:
+        assert stand_of(env.unwrapped.server_spec()) == Stand()
+        assert Stand().support_z() == pytest.approx(-0.1)
     finally:
         env.close()
 

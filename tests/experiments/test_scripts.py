@@ -23,6 +23,13 @@ def script(name: str) -> ModuleType:
     return module
 
 
+def load_config(name: str):
+    """``(train, d4pg, emulation)`` of ``experiments/configs/<name>.json`` with no flags."""
+    return experiment_configs(
+        build_parser(EXPERIMENTS / "configs" / f"{name}.json", "").parse_args([])
+    )
+
+
 @pytest.mark.parametrize(
     "name",
     [
@@ -37,6 +44,7 @@ def script(name: str) -> ModuleType:
         "navigation-average-revisit",
         "navigation-sectors-average",
         "panda-positioning",
+        "isaac-reach-ur10",
     ],
 )
 def test_configs_load_and_flags_override_them(name: str) -> None:
@@ -60,18 +68,26 @@ def test_configs_load_and_flags_override_them(name: str) -> None:
 
 
 def test_panda_positioning_is_the_positioning_recipe_with_the_pandas_reward_scale() -> None:
-    def load(name: str):
-        return experiment_configs(
-            build_parser(EXPERIMENTS / "configs" / f"{name}.json", "").parse_args([])
-        )
-
     from robogym_ray.training.presets import resolve_task
 
-    panda, ur = load("panda-positioning"), load("positioning")
+    panda, ur = load_config("panda-positioning"), load_config("positioning")
     # The D4PG settings, but for the critic's support fitted to the Panda's returns.
     assert panda[1] | {"v_min": ur[1]["v_min"], "v_max": ur[1]["v_max"]} == ur[1]
     assert (panda[1]["v_min"], panda[1]["v_max"]) == (-5.0, 5.0)
     assert "Panda" in resolve_task(panda[0].task).env_id
+
+
+def test_isaac_reach_ur10_is_the_positioning_recipe_with_its_reward_scale() -> None:
+    from robogym_ray.training.presets import TASKS, resolve_task
+
+    reach, ur = load_config("isaac-reach-ur10"), load_config("positioning")
+    assert reach[1] | {"v_min": ur[1]["v_min"], "v_max": ur[1]["v_max"]} == ur[1]
+    preset = resolve_task(reach[0].task)
+    assert preset.env_id == "RoboGymRay/IsaacReachUR10Sim-v0"
+    # The config and the preset agree on the support fitted to the task's returns.
+    assert (reach[1]["v_min"], reach[1]["v_max"]) == (-20.0, 5.0)
+    assert (preset.d4pg["v_min"], preset.d4pg["v_max"]) == (-20.0, 5.0)
+    assert TASKS["isaac-reach-ur10"] is preset
 
 
 @pytest.mark.ray
