@@ -69,6 +69,9 @@ class EvaluationConfig:
     paths: bool = False
     """Record each episode's robot positions (MiR100: x, y; UR: tool0) in evaluation.json, for
     experiments/figures.py's path plots."""
+    isaac_lab: bool = False
+    """The policy is an Isaac Lab export (rsl_rl play.py's policy.pt, TorchScript, or
+    policy.onnx): raw observations in, raw actions in the env's units out; needs --env-id."""
 
     def __post_init__(self) -> None:
         if self.variant not in ("rob", "sim"):
@@ -79,6 +82,8 @@ class EvaluationConfig:
             raise ConfigError(f"video_episodes must be >= 1, got {self.video_episodes}")
         if self.via_actor and (self.rs_address is None or self.variant != "rob"):
             raise ConfigError("via_actor needs --rs-address and --variant rob")
+        if self.isaac_lab and self.env_id is None:
+            raise ConfigError("--isaac-lab needs --env-id: an Isaac Lab policy file names no env")
         if self.rs_address is not None:
             check_address(self.rs_address, "--rs-address")
         for flag, where in (("--out", self.out), ("--video", self.video)):
@@ -100,10 +105,15 @@ class EpisodeRecord:
     """The robot's positions after reset and after each step (``--paths``), else None."""
     obstacles: list[list[float]] | None = None
     """With ``--paths``, the cubes the episode placed (MiR100: x, y, yaw each), if any."""
+    position_error: float | None = None
+    """The end effector's final distance to its target (m), for tasks that report it."""
+    rotation_error: float | None = None
+    """Its final rotation error (rad), for tasks whose target has an orientation."""
 
     def to_dict(self) -> dict[str, Any]:
         record = asdict(self)
-        for key in ("path", "obstacles"):  # evaluation.json stays as it was without --paths
+        # evaluation.json stays as it was for tasks and runs without these
+        for key in ("path", "obstacles", "position_error", "rotation_error"):
             if record[key] is None:
                 del record[key]
         return record
@@ -127,12 +137,14 @@ class EvaluationResult:
 
     def summary(self) -> dict[str, Any]:
         returns = [e.ret for e in self.episodes]
+        means = {k: _mean_of(self.episodes, k) for k in ("position_error", "rotation_error")}
         return {
             "env_id": self.env_id, "rs_address": self.rs_address, "policy": self.policy,
             "n_episodes": len(self.episodes), "counts": self.counts, "rates": self.rates,
             "statuses": dict(Counter(e.final_status for e in self.episodes)),
             "mean_return": float(np.mean(returns)) if returns else 0.0,
             "mean_length": float(np.mean([e.length for e in self.episodes] or [0])),
+            **{f"mean_{k}": v for k, v in means.items() if v is not None},
             "wall_s": round(self.wall_s, 2),
         }  # fmt: skip
 
@@ -149,6 +161,11 @@ class EvaluationResult:
             "|---|---|---|---|---|---|---|---|",
             f"| {self.env_id} | {where} | {n} | {' | '.join(cells)} | {s['mean_return']:.1f} |",
         ])  # fmt: skip
+
+
+def _mean_of(episodes: list[EpisodeRecord], attr: str) -> float | None:
+    values = [getattr(e, attr) for e in episodes if getattr(e, attr) is not None]
+    return round(float(np.mean(values)), 5) if values else None
 
 
 def serve_args(env_id: str) -> list[str]:
@@ -214,8 +231,9 @@ def run_episodes(
             assert videos is not None
             videos.save(i, seed + i, ep.final_status, ep.frames)
         yield EpisodeRecord(
-            i, seed + i, ep.final_status, ep.ret, ep.length, ep.target, ep.path, ep.obstacles
-        )
+            i, seed + i, ep.final_status, ep.ret, ep.length, ep.target, ep.path, ep.obstacles,
+            ep.position_error, ep.rotation_error,
+        )  # fmt: skip
 
 
 def evaluate(policy_path: str | Path, cfg: EvaluationConfig) -> EvaluationResult:
@@ -225,10 +243,17 @@ def evaluate(policy_path: str | Path, cfg: EvaluationConfig) -> EvaluationResult
     import robogym_ray.envs  # noqa: F401 - registers the ids
     from robogym_ray.export import load_policy, sidecar_path
 
-    policy = load_policy(policy_path, cfg.online_weights)
-    # A checkpoint's label says which of its policies ran (PATH#policy_average).
-    label = str(policy_path) if sidecar_path(policy_path).exists() else str(policy.info.source)
-    env_id = cfg.env_id or policy.info.env_id
+    if cfg.isaac_lab:
+        from robogym_ray.isaac_lab import IsaacLabPolicy
+
+        policy: Any = IsaacLabPolicy(policy_path)  # read and checked before any env or Ray
+        label, env_id, dims = str(policy_path), cfg.env_id, (policy.obs_dim, policy.act_dim)
+    else:
+        policy = load_policy(policy_path, cfg.online_weights)
+        # A checkpoint's label says which of its policies ran (PATH#policy_average).
+        exported = sidecar_path(policy_path).exists()
+        label = str(policy_path) if exported else str(policy.info.source)
+        env_id, dims = cfg.env_id or policy.info.env_id, (policy.info.obs_dim, policy.info.act_dim)
     if env_id is None:
         raise ConfigError(f"no env id known for {policy_path}: pass --env-id")
     kwargs: dict[str, Any] = {"token": cfg.token}
@@ -259,7 +284,9 @@ def evaluate(policy_path: str | Path, cfg: EvaluationConfig) -> EvaluationResult
         if cfg.video:
             fps = env.metadata["render_fps"]
             videos = EpisodeVideos(cfg.video, min(cfg.video_episodes, cfg.episodes), fps)
-        _check_dims(env, policy.info.obs_dim, policy.info.act_dim, env_id)
+        _check_dims(env, *dims, env_id)
+        if cfg.isaac_lab:  # its raw actions onto [-1, 1] by the env's bounds
+            policy = policy.unit_policy(env)
         result = EvaluationResult(env_id, cfg.rs_address, label)
         start = time.perf_counter()
         result.episodes = list(run_episodes(policy, env, cfg.episodes, cfg.seed, videos, cfg.paths))

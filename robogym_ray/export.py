@@ -1,10 +1,12 @@
-"""Policies out of training: from a learner checkpoint, and as TorchScript for the robot PC.
+"""Policies out of training: from a learner checkpoint, and as TorchScript or ONNX for the
+robot PC.
 
 ``robogym-ray export CHECKPOINT OUT`` writes ``OUT`` (a TorchScript module: float32 observations
-``(batch, obs_dim)`` -> actions in [-1, 1] ``(batch, act_dim)``) and ``OUT.json`` next to it
+``(batch, obs_dim)`` -> actions in [-1, 1] ``(batch, act_dim)``; an ONNX model with input ``obs``
+and output ``actions`` when OUT ends in ``.onnx``) and ``OUT.json`` next to it
 (``sidecar_path``): format, dimensions, env id, the env's action bounds and where it came from.
-The robot PC needs only torch to run it (no robogym_ray, no Ray); ``robogym-ray run-policy``
-drives a robot server with it.
+The robot PC needs only torch to run the TorchScript file, only onnxruntime to run the ONNX one
+(no robogym_ray, no Ray); ``robogym-ray run-policy`` drives a robot server with either.
 
 A checkpoint is ``learner.pt`` as ``D4PGLearner.save`` writes it; the policy's architecture is
 read back from its weights (hidden sizes, LayerNorm), so no config is needed to load it.
@@ -29,6 +31,8 @@ from robogym_ray.learner.checkpoint import policy_weights, read
 from robogym_ray.text import clip_text
 
 FORMAT = "robogym-ray-policy/torchscript-v1"
+ONNX_FORMAT = "robogym-ray-policy/onnx-v1"
+"""An ``OUT.onnx`` export: the same policy as ONNX (input ``obs``, output ``actions``)."""
 
 
 @dataclass(frozen=True)
@@ -144,30 +148,43 @@ def export_policy(
     env_id = env_id or env_id_of_run(checkpoint)
     low, high = action_bounds(env_id) if env_id else (None, None)
     info = PolicyInfo(**{**asdict(info), "env_id": env_id, "action_low": low, "action_high": high})
-    # Tracing is exact here: the policy is a fixed MLP with no data-dependent control flow.
-    example = torch.zeros(1, info.obs_dim)
-    scripted = torch.jit.trace(policy, example)
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    scripted.save(str(out))
+    if out.suffix == ".onnx":  # for a robot PC with onnxruntime only
+        from robogym_ray.onnx_policy import write_onnx
+
+        info = PolicyInfo(**{**asdict(info), "format": ONNX_FORMAT})
+        write_onnx(policy, info.obs_dim, out)
+    else:
+        # Tracing is exact here: the policy is a fixed MLP with no data-dependent control flow.
+        torch.jit.trace(policy, torch.zeros(1, info.obs_dim)).save(str(out))
     sidecar_path(out).write_text(json.dumps(asdict(info), indent=2))
     return info
 
 
-def load_exported(path: str | Path) -> tuple[torch.jit.ScriptModule, PolicyInfo]:
-    """An exported policy and its sidecar, both checked: the module is run once on zeros and
-    must answer ``(1, act_dim)`` (a ConfigError saying what is wrong, never a traceback)."""
+def load_exported(path: str | Path) -> tuple[Any, PolicyInfo]:
+    """An exported policy and its sidecar, both checked: the module (TorchScript, or an
+    ``OnnxPolicy`` for ``.onnx``) is run once on zeros and must answer ``(1, act_dim)`` (a
+    ConfigError saying what is wrong, never a traceback)."""
     sidecar = sidecar_path(path)
     data = read_json(sidecar, "policy sidecar")
     if not isinstance(data, dict):
         raise ConfigError(f"{sidecar}: expected a JSON object, got {quote(data)}")
-    if data.get("format") != FORMAT:
-        raise ConfigError(f"{sidecar}: format {quote(data.get('format'))}, expected {FORMAT}")
+    expected = ONNX_FORMAT if Path(path).suffix == ".onnx" else FORMAT
+    if data.get("format") != expected:
+        raise ConfigError(f"{sidecar}: format {quote(data.get('format'))}, expected {expected}")
     check_fields(PolicyInfo, data, str(sidecar))
     missing = sorted(set(_REQUIRED) - set(data))
     if missing:
         raise ConfigError(f"{sidecar}: no {', '.join(missing)}")
     info = PolicyInfo(**{k: tuple(v) if isinstance(v, list) else v for k, v in data.items()})
+    if expected == ONNX_FORMAT:
+        from robogym_ray.onnx_policy import OnnxPolicy
+
+        onnx = OnnxPolicy(path)  # a file onnxruntime cannot read is a one-line ConfigError
+        shape = tuple(onnx(np.zeros((1, info.obs_dim), np.float32)).shape)
+        _check_answer(path, info, shape)
+        return onnx, info
     try:
         module = torch.jit.load(str(path), map_location="cpu")
         module.eval()
@@ -176,27 +193,35 @@ def load_exported(path: str | Path) -> tuple[torch.jit.ScriptModule, PolicyInfo]
     except (OSError, RuntimeError, ValueError) as exc:  # not TorchScript, truncated, mismatched
         first = (str(exc).strip().splitlines() or [type(exc).__name__])[0].split(". ")[0]
         raise ConfigError(f"cannot load exported policy {path}: {clip_text(first, 200)}") from None
+    _check_answer(path, info, shape)
+    return module, info
+
+
+def _check_answer(path: str | Path, info: PolicyInfo, shape: tuple[int, ...]) -> None:
     if shape != (1, info.act_dim):
         raise ConfigError(
             f"exported policy {path} maps (1, {info.obs_dim}) to {shape}; its sidecar says "
             f"(1, {info.act_dim})"
         )
-    return module, info
 
 
 _REQUIRED = [f.name for f in fields(PolicyInfo) if f.default is MISSING]
 
 
 class PolicyFunction:
-    """``obs -> action in [-1, 1]`` (float32, one observation) for any loaded policy."""
+    """``obs -> action in [-1, 1]`` (float32, one observation) for any loaded policy: a torch
+    module (checkpoint, TorchScript) or a ``[batch, obs] -> [batch, act]`` array function."""
 
-    def __init__(self, module: nn.Module, info: PolicyInfo) -> None:
+    def __init__(self, module: Any, info: PolicyInfo) -> None:
         self.module, self.info = module, info
+        self._torch = isinstance(module, nn.Module | torch.jit.ScriptModule)
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
+        batch = np.asarray(obs, dtype=np.float32).reshape(1, -1)
+        if not self._torch:
+            return np.asarray(self.module(batch))[0].astype(np.float32)
         with torch.inference_mode():
-            batch = torch.as_tensor(np.asarray(obs, dtype=np.float32)).reshape(1, -1)
-            return self.module(batch)[0].numpy().astype(np.float32)
+            return self.module(torch.from_numpy(batch))[0].numpy().astype(np.float32)
 
 
 def load_policy(path: str | Path, online: bool = False) -> PolicyFunction:
@@ -213,7 +238,11 @@ def load_policy(path: str | Path, online: bool = False) -> PolicyFunction:
 # -- CLI: robogym-ray export -------------------------------------------------------------------
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("checkpoint", help="learner.pt written by training (RUN/checkpoints/).")
-    parser.add_argument("out", help="TorchScript file to write; its sidecar is OUT.json.")
+    parser.add_argument(
+        "out",
+        help="File to write: TorchScript, or ONNX when it ends in .onnx (for onnxruntime on a "
+        "robot PC without torch); its sidecar is OUT.json.",
+    )
     parser.add_argument(
         "--env-id",
         default=None,

@@ -1,8 +1,18 @@
-"""``robogym-ray run-policy``: drive a robot server with an exported policy (on the robot PC).
+"""``robogym-ray run-policy``: drive a robot with an exported policy (on the robot PC).
 
-The same episodes and report as ``robogym-ray evaluate`` (``robogym_ray.evaluation``), but the
-robot server's address is required and the policy is an exported TorchScript file, so the robot
-PC needs neither a training run directory nor Ray (unless ``--via-actor``).
+The same episodes and report as ``robogym-ray evaluate`` (``robogym_ray.evaluation``), for a
+policy file that needs no training run directory and no Ray (unless ``--via-actor``): one of
+ours (``robogym-ray export``: TorchScript with its ``.json`` sidecar, or its ONNX twin), or an
+Isaac Lab export (``--isaac-lab``: rsl_rl ``play.py``'s ``policy.pt`` or ``policy.onnx``).
+
+    robogym-ray run-policy --isaac-lab logs/rsl_rl/reach_ur10/RUN/exported/policy.pt \\
+        --env-id RoboGymRay/IsaacReachUR10Sim-v0 --episodes 10        # our simulation
+    robogym-ray run-policy --isaac-lab policy.onnx --env-id RoboGymRay/IsaacReachUR10Rob-v0 \\
+        --rs-address ROBOT:50051 --token T --via-actor                # the robot, filtered
+
+Without ``--rs-address`` the task's Sim variant runs in this process; with it, the robot server
+at that address (real or ``serve --emulate-hardware``) is driven through the Rob variant, and
+``--via-actor`` puts the real-robot safety filter in between.
 """
 
 from __future__ import annotations
@@ -16,19 +26,21 @@ from robogym_ray.export import sidecar_path
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--policy", required=True, help="Exported policy (robogym-ray export).")
+    parser.add_argument("policy_file", nargs="?", metavar="POLICY", help="The policy file.")
+    parser.add_argument("--policy", default=None, help="The policy file (same as POLICY).")
     add_config_args(parser, EvaluationConfig)
 
 
 def run(args: argparse.Namespace) -> int:
     cfg = config_from_args(EvaluationConfig, args)
-    if not cfg.rs_address:
-        raise ConfigError("run-policy needs --rs-address HOST:PORT of the robot server")
-    if not sidecar_path(args.policy).exists():
+    if (args.policy is None) == (args.policy_file is None):
+        raise ConfigError("run-policy takes one policy file: POLICY or --policy PATH")
+    policy = args.policy or args.policy_file
+    if not cfg.isaac_lab and not sidecar_path(policy).exists():
         raise ConfigError(
-            f"{args.policy} has no {sidecar_path(args.policy).name}: export it with "
-            "`robogym-ray export CHECKPOINT OUT` first"
+            f"{policy} has no {sidecar_path(policy).name}: export it with "
+            "`robogym-ray export CHECKPOINT OUT` first (an Isaac Lab file: --isaac-lab)"
         )
-    result = evaluate(args.policy, cfg)
+    result = evaluate(policy, cfg)
     report(result, cfg.out)
     return 0

@@ -30,6 +30,15 @@ class GreedyEpisode:
     """With ``track``: the robot's position (``position()``) after reset and each step."""
     frames: list[np.ndarray] = field(default_factory=list)
     """With ``film``: ``env.render()`` after reset and each step (the env renders rgb_array)."""
+    position_error: float | None = None
+    """The end effector's distance to its target at the end (m), for tasks that report it."""
+    rotation_error: float | None = None
+    """Its rotation error at the end (rad), for tasks whose target has an orientation."""
+
+
+ERROR_KEYS = {"position_error": ("dist_coord", "distance"), "rotation_error": ("dist_rot",)}
+"""Where tasks put their final errors in ``info``: the arm tasks of robo-gym 2.1.0 and the UR
+positioning task name the distance differently."""
 
 
 def greedy_episode(
@@ -62,6 +71,9 @@ def greedy_episode(
         if episode.path is not None:
             episode.path.append(_where(task))
     episode.final_status = final_status(info, truncated)
+    for attr, keys in ERROR_KEYS.items():
+        found = next((info[k] for k in keys if k in info), None)
+        setattr(episode, attr, None if found is None else round(float(found), 5))
     return episode
 
 

@@ -1,0 +1,227 @@
+"""Isaac Lab's exported policies on our robots, and our own policies as ONNX.
+
+The policy files are made here with the structure Isaac Lab's rsl_rl exporter gives them (an
+actor MLP behind the empirical observation normaliser, ``torch.jit.script`` for ``policy.pt``,
+``torch.onnx.export`` with input ``obs``, output ``actions``, batch 1, opset 11 for
+``policy.onnx``): no Isaac Lab needed. They run through ``run-policy --isaac-lab`` on the Sim id
+and on an emulated robot behind ``robogym-ray serve``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import warnings
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+from torch import nn
+
+from robogym_ray.cli import main as cli_main
+from robogym_ray.evaluation import serve_args
+from robogym_ray.export import ONNX_FORMAT, export_policy, load_exported, load_policy
+from tests.experiments.conftest import POSITIONING, save_learner
+
+pytest.importorskip("onnxruntime")
+
+UR10 = "RoboGymRay/IsaacReachUR10Sim-v0"
+PANDA = "RoboGymRay/IsaacReachPandaSim-v0"
+
+
+class EmpiricalNormalization(nn.Module):
+    """rsl_rl's observation normaliser as it sits in the exported module (eval mode)."""
+
+    def __init__(self, size: int, eps: float = 1e-2) -> None:
+        super().__init__()
+        self.eps = eps
+        self.register_buffer("_mean", torch.zeros(size).unsqueeze(0))
+        self.register_buffer("_var", torch.ones(size).unsqueeze(0))
+        self.register_buffer("_std", torch.ones(size).unsqueeze(0))
+        self.register_buffer("count", torch.tensor(0, dtype=torch.long))
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return (x - self._mean) / (self._std + self.eps)
+
+
+class PolicyExporter(nn.Module):
+    """The shape of Isaac Lab's ``_TorchPolicyExporter``: ``actor(normalizer(obs))``."""
+
+    def __init__(self, obs_dim: int, act_dim: int) -> None:
+        super().__init__()
+        torch.manual_seed(0)
+        self.actor = nn.Sequential(
+            nn.Linear(obs_dim, 64), nn.ELU(), nn.Linear(64, 64), nn.ELU(), nn.Linear(64, act_dim)
+        )
+        self.normalizer = EmpiricalNormalization(obs_dim)
+        self.normalizer._mean.uniform_(-0.5, 0.5)
+        self.normalizer._std.uniform_(0.5, 2.0)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return self.actor(self.normalizer(x))
+
+    @torch.jit.export
+    def reset(self) -> None:
+        pass
+
+
+def isaac_lab_export(folder: Path, obs_dim: int, act_dim: int) -> tuple[Path, Path, nn.Module]:
+    """``policy.pt`` and ``policy.onnx`` as Isaac Lab's play.py writes them."""
+    folder.mkdir(parents=True, exist_ok=True)
+    module = PolicyExporter(obs_dim, act_dim).eval()
+    torch.jit.script(module).save(str(folder / "policy.pt"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        torch.onnx.export(
+            module, torch.zeros(1, obs_dim), str(folder / "policy.onnx"), export_params=True,
+            opset_version=11, input_names=["obs"], output_names=["actions"], dynamic_axes={},
+            dynamo=False,
+        )  # fmt: skip
+    return folder / "policy.pt", folder / "policy.onnx", module
+
+
+@pytest.fixture(scope="module")
+def ur10_files(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, nn.Module]:
+    return isaac_lab_export(tmp_path_factory.mktemp("isaac") / "exported", 25, 6)
+
+
+def run_policy(capsys: pytest.CaptureFixture, *argv: str) -> dict:
+    assert cli_main(["run-policy", *argv]) == 0
+    return json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+
+
+def test_both_files_run_on_the_sim_id_and_act_alike(ur10_files, tmp_path, capsys) -> None:
+    pt, onnx, module = ur10_files
+    runs = {}
+    for path in (pt, onnx):
+        out = tmp_path / path.suffix[1:]
+        summary = run_policy(capsys, "--isaac-lab", str(path), "--env-id", UR10,
+                             "--episodes", "2", "--max-steps", "15", "--out", str(out))  # fmt: skip
+        assert summary["env_id"] == UR10 and summary["n_episodes"] == 2
+        # What the runner prints: success and the end effector's final errors.
+        assert 0.0 <= summary["rates"]["success_rate"] <= 1.0
+        assert summary["mean_position_error"] > 0 and summary["mean_rotation_error"] >= 0
+        runs[path.suffix] = json.loads((out / "evaluation.json").read_text())["episodes"]
+    # The two files are one network: the same seeded episodes end the same way.
+    for a, b in zip(runs[".pt"], runs[".onnx"], strict=True):
+        assert (a["seed"], a["final_status"], a["length"]) == (b["seed"], b["final_status"],
+                                                               b["length"])  # fmt: skip
+        assert a["position_error"] == pytest.approx(b["position_error"], abs=1e-4)
+
+
+def test_raw_actions_reach_the_env_in_its_own_units(ur10_files) -> None:
+    """The runner's [-1, 1] mapping undoes the env's: the env receives the network's output."""
+    import gymnasium as gym
+
+    from robogym_ray.isaac_lab import IsaacLabPolicy
+    from robogym_ray.learner.behaviour import to_env_action
+
+    pt, onnx, module = ur10_files
+    env = gym.make(UR10)
+    try:
+        obs, _ = env.reset(seed=0)
+        low, high = env.action_space.low, env.action_space.high
+        with torch.no_grad():
+            raw = module(torch.as_tensor(obs[None])).numpy()[0]
+        for path in (pt, onnx):
+            unit = IsaacLabPolicy(path).unit_policy(env)(obs)
+            np.testing.assert_allclose(to_env_action(unit, low, high), raw, atol=1e-5)
+    finally:
+        env.close()
+
+
+@pytest.fixture
+def emulated_isaac_ur10() -> Iterator[str]:
+    """``robogym-ray serve --emulate-hardware`` with IsaacReachUR10's robot, table and frame."""
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "robogym_ray.cli", "serve", "--real-time", "--emulate-hardware",
+         "--seed", "1", *serve_args(UR10)],
+        stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
+    )  # fmt: skip
+    line = proc.stdout.readline().strip()  # type: ignore[union-attr]
+    try:
+        assert line.startswith("listening on "), line
+        yield line.removeprefix("listening on ")
+    finally:
+        os.kill(proc.pid, signal.SIGTERM)
+        proc.wait(timeout=20)
+
+
+def test_both_files_drive_an_emulated_robot(ur10_files, emulated_isaac_ur10, capsys) -> None:
+    pt, onnx, _ = ur10_files
+    for path in (pt, onnx):
+        summary = run_policy(capsys, "--isaac-lab", str(path), "--env-id", UR10,
+                             "--rs-address", emulated_isaac_ur10, "--episodes", "1",
+                             "--max-steps", "6")  # fmt: skip
+        assert summary["env_id"] == "RoboGymRay/IsaacReachUR10Rob-v0"
+        assert summary["rs_address"] == emulated_isaac_ur10 and summary["n_episodes"] == 1
+        # Real-time pacing at the task's 30 Hz: 6 actions take at least 0.2 s.
+        assert summary["wall_s"] >= 0.2
+
+
+def one_error_line(capfd: pytest.CaptureFixture, *argv: str) -> str:
+    capfd.readouterr()
+    assert cli_main(list(argv)) == 2
+    lines = capfd.readouterr().err.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: "), lines
+    return lines[0]
+
+
+def test_files_of_the_wrong_kind_or_shape_are_refused(ur10_files, tmp_path, capfd) -> None:
+    pt, onnx, _ = ur10_files
+    for path in (pt, onnx):  # the UR10's 25 -> 6 policy on the Panda's 32 -> 7 task
+        line = one_error_line(capfd, "run-policy", "--isaac-lab", str(path), "--env-id", PANDA)
+        assert "maps 25 observations to 6 actions" in line and "has 32 and 7" in line
+    junk = tmp_path / "policy.pt"
+    junk.write_bytes(bytes(range(256)) * 8)
+    assert "not a TorchScript file" in one_error_line(
+        capfd, "run-policy", "--isaac-lab", str(junk), "--env-id", UR10)  # fmt: skip
+    junk_onnx = tmp_path / "policy.onnx"
+    junk_onnx.write_bytes(bytes(range(256)) * 8)
+    assert "not an ONNX model" in one_error_line(
+        capfd, "run-policy", "--isaac-lab", str(junk_onnx), "--env-id", UR10)  # fmt: skip
+    plain = tmp_path / "plain.pt"  # TorchScript, but no actor: not an rsl_rl export
+    torch.jit.script(nn.Sequential(nn.Linear(25, 6))).save(str(plain))
+    assert "not an rsl_rl export" in one_error_line(
+        capfd, "run-policy", "--isaac-lab", str(plain), "--env-id", UR10)  # fmt: skip
+    other = tmp_path / "policy.zip"
+    other.write_bytes(b"x")
+    assert "policy.pt (TorchScript) or policy.onnx" in one_error_line(
+        capfd, "evaluate", "--isaac-lab", str(other), "--env-id", UR10)  # fmt: skip
+    assert "needs --env-id" in one_error_line(capfd, "evaluate", "--isaac-lab", str(pt))
+
+
+def test_our_onnx_export_acts_like_its_torchscript_twin(tmp_path) -> None:
+    save_learner(tmp_path / "learner.pt", 15, 6)
+    export_policy(tmp_path / "learner.pt", tmp_path / "policy.pt", env_id=POSITIONING)
+    info = export_policy(tmp_path / "learner.pt", tmp_path / "policy.onnx", env_id=POSITIONING)
+    assert info.format == ONNX_FORMAT
+    scripted, _ = load_exported(tmp_path / "policy.pt")
+    onnx, loaded = load_exported(tmp_path / "policy.onnx")
+    assert loaded == info
+    obs = np.random.default_rng(0).normal(scale=2.0, size=(1000, 15)).astype(np.float32)
+    with torch.no_grad():
+        expected = scripted(torch.from_numpy(obs)).numpy()
+    np.testing.assert_allclose(onnx(obs), expected, rtol=0, atol=1e-5)  # any batch size
+    one = load_policy(tmp_path / "policy.onnx")  # one observation at a time, as evaluate does
+    np.testing.assert_allclose(one(obs[7]), expected[7], rtol=0, atol=1e-5)
+
+
+@pytest.mark.ray
+@pytest.mark.slow
+@pytest.mark.usefixtures("ray_cluster")
+def test_the_robot_is_driven_through_the_real_robot_safety_filter(
+    ur10_files, emulated_isaac_ur10
+) -> None:
+    from robogym_ray.evaluation import EvaluationConfig, evaluate
+
+    pt, _, _ = ur10_files
+    cfg = EvaluationConfig(env_id=UR10, rs_address=emulated_isaac_ur10, episodes=1, max_steps=4,
+                           via_actor=True, isaac_lab=True)  # fmt: skip
+    result = evaluate(pt, cfg)
+    assert result.env_id == "RoboGymRay/IsaacReachUR10Rob-v0" and result.episodes[0].length == 4
