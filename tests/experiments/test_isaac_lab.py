@@ -10,10 +10,6 @@ and on an emulated robot behind ``robogym-ray serve``.
 from __future__ import annotations
 
 import json
-import os
-import signal
-import subprocess
-import sys
 import warnings
 from collections.abc import Iterator
 from pathlib import Path
@@ -24,8 +20,9 @@ import torch
 from torch import nn
 
 from robogym_ray.cli import main as cli_main
-from robogym_ray.evaluation import serve_args
+from robogym_ray.evaluation import emulated_server
 from robogym_ray.export import ONNX_FORMAT, export_policy, load_exported, load_policy
+from robogym_ray.robots.serve import serve_process
 from tests.experiments.conftest import POSITIONING, save_learner
 
 pytest.importorskip("onnxruntime")
@@ -138,18 +135,8 @@ def test_raw_actions_reach_the_env_in_its_own_units(ur10_files) -> None:
 @pytest.fixture
 def emulated_isaac_ur10() -> Iterator[str]:
     """``robogym-ray serve --emulate-hardware`` with IsaacReachUR10's robot, table and frame."""
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "robogym_ray.cli", "serve", "--real-time", "--emulate-hardware",
-         "--seed", "1", *serve_args(UR10)],
-        stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
-    )  # fmt: skip
-    line = proc.stdout.readline().strip()  # type: ignore[union-attr]
-    try:
-        assert line.startswith("listening on "), line
-        yield line.removeprefix("listening on ")
-    finally:
-        os.kill(proc.pid, signal.SIGTERM)
-        proc.wait(timeout=20)
+    with emulated_server(UR10, seed=1) as address:
+        yield address
 
 
 def test_both_files_drive_an_emulated_robot(ur10_files, emulated_isaac_ur10, capsys) -> None:
@@ -225,3 +212,38 @@ def test_the_robot_is_driven_through_the_real_robot_safety_filter(
                            via_actor=True, isaac_lab=True)  # fmt: skip
     result = evaluate(pt, cfg)
     assert result.env_id == "RoboGymRay/IsaacReachUR10Rob-v0" and result.episodes[0].length == 4
+
+
+def doc_commands(program: str) -> list[list[str]]:
+    """docs/isaac-lab.md's ``robogym-ray PROGRAM ...`` command lines, arguments after it."""
+    import re
+    import shlex
+
+    text = (Path(__file__).resolve().parents[2] / "docs" / "isaac-lab.md").read_text()
+    code = "\n".join(re.findall(r"```bash\n(.*?)```", text, re.S)).replace("\\\n", " ")
+    commands = [shlex.split(line, comments=True) for line in code.splitlines()]
+    return [c[2:] for c in commands if c[:2] == ["robogym-ray", program]]
+
+
+@pytest.mark.ray
+@pytest.mark.slow
+@pytest.mark.usefixtures("ray_cluster")
+def test_the_pages_commands_run(ur10_files, tmp_path, capsys) -> None:
+    """Every robogym-ray command of docs/isaac-lab.md as written, with this test's policy files
+    for POLICY, a free port for the server, folders of its own and one short episode each."""
+    pt, onnx, _ = ur10_files
+    (serve,) = doc_commands("serve")
+    with serve_process(["0" if a == "50051" else a for a in serve]) as address:
+        runs = [("run-policy", a) for a in doc_commands("run-policy")]
+        runs += [("evaluate", a) for a in doc_commands("evaluate")]
+        assert len(runs) == 4
+        for k, (program, argv) in enumerate(runs):
+            swap = {"POLICY": str(onnx if k % 2 else pt), "ROBOT:50051": address,
+                    "127.0.0.1:50051": address}  # fmt: skip
+            argv = [swap.get(a, str(tmp_path / a) if a.startswith("ev-") else a) for a in argv]
+            if "--token" in argv:  # the emulated server wants none
+                del argv[argv.index("--token") : argv.index("--token") + 2]
+            argv[argv.index("--episodes") + 1] = "1"
+            assert cli_main([program, *argv, "--max-steps", "3"]) == 0, argv
+            summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+            assert summary["n_episodes"] == 1
