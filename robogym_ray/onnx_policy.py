@@ -8,7 +8,8 @@ actions). A robot PC runs either with ``onnxruntime`` alone, without torch or th
     session = ort.InferenceSession("policy.onnx")
     action = session.run(None, {"obs": obs.reshape(1, -1).astype(np.float32)})[0][0]
 
-Reading them here needs the ``onnx`` extra (``pip install -e ".[onnx]"``: onnxruntime).
+Reading and writing them here needs the ``onnx`` extra (``pip install -e ".[onnx]"``:
+onnxruntime, and onnx for torch's exporter).
 """
 
 from __future__ import annotations
@@ -67,8 +68,8 @@ def _size(shape: list[Any], path: Path) -> int:
 def write_onnx(module: Any, obs_dim: int, path: str | Path) -> None:
     """Write a torch policy (``[batch, obs_dim] -> [batch, act_dim]``) as ONNX, any batch size.
 
-    TorchScript-based export (``dynamo=False``): exact for a fixed MLP, and it needs neither the
-    ``onnx`` nor the ``onnxscript`` package.
+    TorchScript-based export (``dynamo=False``): exact for a fixed MLP; it needs the ``onnx``
+    package (the ``onnx`` extra), not ``onnxscript``.
     """
     import warnings
 
