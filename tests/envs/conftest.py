@@ -5,7 +5,8 @@ from __future__ import annotations
 import subprocess
 import sys
 import time
-from collections.abc import Callable, Iterator
+import warnings
+from collections.abc import Callable, Iterable, Iterator
 from concurrent import futures
 from typing import Any
 
@@ -91,3 +92,14 @@ def serve_subprocess() -> Iterator[Callable[..., str]]:
             proc.wait(timeout=10)
         except subprocess.TimeoutExpired:
             proc.kill()
+
+
+def check_env_warnings(env: Any, known: Iterable[str]) -> list[str]:
+    """Gymnasium's ``check_env`` on ``env``: the warnings it gives beyond the ``known`` ones
+    (each named by a piece of its text); raises what check_env raises."""
+    from gymnasium.utils.env_checker import check_env
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        check_env(env, skip_render_check=True)
+    return [str(w.message) for w in caught if not any(k in str(w.message) for k in known)]

@@ -4,12 +4,10 @@
 from __future__ import annotations
 
 import math
-import warnings
 
 import gymnasium as gym
 import numpy as np
 import pytest
-from gymnasium.utils.env_checker import check_env
 from scipy.spatial.transform import Rotation
 
 import robogym_ray  # noqa: F401 - registers the ids
@@ -17,6 +15,7 @@ from robogym_ray.envs import ENV_IDS
 from robogym_ray.errors import ConfigError
 from robogym_ray.robots.server import start_robot_server
 from robogym_ray.robots.ur.geometry import forward_kinematics
+from tests.envs.conftest import check_env_warnings
 
 UR, PANDA = "RoboGymRay/IsaacReachUR10Sim-v0", "RoboGymRay/IsaacReachPandaSim-v0"
 
@@ -66,12 +65,7 @@ def test_spaces_equal_robo_gym_2_1_0_and_check_env_is_clean(env_id):
         np.testing.assert_array_equal(env.observation_space.high, obs_hi)
         np.testing.assert_array_equal(env.action_space.low, act_lo)
         np.testing.assert_array_equal(env.action_space.high, act_hi)
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            check_env(env.unwrapped, skip_render_check=True)
-        others = [str(w.message) for w in caught if not any(k in str(w.message)
-                                                            for k in KNOWN_WARNINGS)]  # fmt: skip
-        assert others == []
+        assert check_env_warnings(env.unwrapped, KNOWN_WARNINGS) == []
     finally:
         env.close()
 

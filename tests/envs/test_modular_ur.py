@@ -3,18 +3,16 @@ embedded UR server: spaces equal to 2.1.0's, observations, rewards, ends, resets
 
 from __future__ import annotations
 
-import warnings
-
 import gymnasium as gym
 import numpy as np
 import pytest
-from gymnasium.utils.env_checker import check_env
 from scipy.spatial.transform import Rotation
 
 import robogym_ray  # noqa: F401 - registers the ids
 from robogym_ray.envs import ENV_IDS
 from robogym_ray.errors import ConfigError
 from robogym_ray.robots.ur.geometry import forward_kinematics
+from tests.envs.conftest import check_env_warnings
 
 EMPTY5, EMPTY10 = "RoboGymRay/EmptyEnvironment2UR5Sim-v0", "RoboGymRay/EmptyEnvironment2UR10Sim-v0"
 EE5, EE10 = (
@@ -61,12 +59,7 @@ def test_spaces_equal_robo_gym_2_1_0_and_check_env_is_clean(env_id, kwargs, layo
         np.testing.assert_array_equal(env.observation_space.high, -low)
         np.testing.assert_array_equal(env.action_space.low, -np.ones(5, np.float32))
         np.testing.assert_array_equal(env.action_space.high, np.ones(5, np.float32))
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            check_env(env.unwrapped, skip_render_check=True)
-        others = [str(w.message) for w in caught if not any(k in str(w.message)
-                                                            for k in KNOWN_WARNINGS)]  # fmt: skip
-        assert others == []
+        assert check_env_warnings(env.unwrapped, KNOWN_WARNINGS) == []
     finally:
         env.close()
 
