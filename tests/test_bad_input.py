@@ -231,6 +231,8 @@ def test_addresses_are_checked_before_anything_starts(
     assert "--rs-address 'robot:70000'" in line
     line = fails(capfd, "resume", "arm", "--ray-address", "nowhere")
     assert line == "error: --ray-address 'nowhere' is not HOST:PORT (port 1-65535)"
+    line = fails(capfd, "manager", "--port", "0", "--ray-address", "nowhere")
+    assert line == "error: --ray-address 'nowhere' is not HOST:PORT (port 1-65535)"
 
 
 def test_train_checks_cpus_and_logdir_before_ray(

@@ -13,7 +13,7 @@ import signal
 import threading
 from dataclasses import dataclass
 
-from robogym_ray.config import add_config_args, check_port, config_from_args
+from robogym_ray.config import add_config_args, check_port, check_ray_address, config_from_args
 from robogym_ray.errors import ConfigError
 from robogym_ray.robots.server import check_port_free
 from robogym_ray.supervision.manager_service import ManagerLimits
@@ -54,6 +54,8 @@ class ManagerConfig:
 
     def __post_init__(self) -> None:
         check_port(self.port, "ManagerConfig.port (--port)")
+        if self.ray_address is not None:  # else Ray fails on it later, in a traceback
+            check_ray_address(self.ray_address, "--ray-address")
         for name, ok in (
             ("num_cpus", self.num_cpus > 0),
             ("probe_interval_s", self.probe_interval_s > 0),
