@@ -1,4 +1,5 @@
-"""Chaos: a navigation training under robot-server, rollout-worker and learner kills (issue 20).
+"""Chaos: a navigation training under robot-server, rollout-worker and learner kills
+(docs/benchmarks.md section 11).
 
     python benchmarks/chaos.py [--seconds 420] [--server-every 20] [--worker-at 50]
                                [--learner-at 110] [--after-snapshot 30] [--snapshot-every S]
@@ -250,6 +251,10 @@ def report(chaos: Chaos, summary: dict[str, Any] | None) -> None:
             ("env steps", f"{summary['env_steps']:,}"),
             ("learner steps", f"{summary['learner_steps']:,}"),
             ("server restarts by cause (`restarts`)", restarts),
+            (
+                "servers given up by the restart policy (`servers_given_up`)",
+                summary["servers_given_up"],
+            ),
             ("`faults/worker_failures`", summary["faults/worker_failures"]),
             ("`faults/worker_replacements`", summary["faults/worker_replacements"]),
             ("`faults/learner_failures`", summary.get("faults/learner_failures")),

@@ -65,6 +65,9 @@ def finish(
         run_stats, final,
         task=p.preset.env_id, wall_s=round(wall_s, 2), checkpoint=checkpoint,
         restarts=stats.all_restarts(run_stats, p.restart_counts()),
+        # A server's fault past the restart policy's limit: given up, not restarted (its
+        # holder leases another), so faults = sum(restarts) + servers_given_up.
+        servers_given_up=p.servers_given_up(),
         learner_restored_from_step=learner_status["restored_from_step"],
         learner_restored_replay=learner_status["restored_replay"],
         # Sent but not in the replay: lost with a learner that Ray restarted (what came after

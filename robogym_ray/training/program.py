@@ -158,6 +158,9 @@ class Program:
     def restart_counts(self) -> dict[str, int]:
         return {} if self.supervision is None else self.supervision.restart_counts()
 
+    def servers_given_up(self) -> int:
+        return 0 if self.supervision is None else self.supervision.given_up()
+
     def server_nodes(self) -> list[dict[str, Any]]:
         return [] if self.supervision is None else self.supervision.server_nodes()
 

@@ -117,15 +117,21 @@ class Supervision:
 
     def restart_counts(self) -> dict[str, int]:
         """Restarts by cause over every server of this supervisor."""
-        try:
-            servers = ray.get(self.actor.status.remote(), timeout=10)
-        except Exception:  # noqa: BLE001 - a dead supervisor must not stop the run's logging
-            return {}
         # Every cause appears (zeros too), so TensorBoard shows the five faults from the start.
         counts: Counter[str] = Counter({cause.value: 0 for cause in FaultCause})
-        for server in servers:
+        for server in self._servers():
             counts.update(server.get("restarts", {}))
         return dict(counts)
+
+    def given_up(self) -> int:
+        """Servers the restart policy gave up (one fault past its limit: not a restart)."""
+        return sum(server.get("state") == "given_up" for server in self._servers())
+
+    def _servers(self) -> list[dict[str, Any]]:
+        try:
+            return list(ray.get(self.actor.status.remote(), timeout=10))
+        except Exception:  # noqa: BLE001 - a dead supervisor must not stop the run's logging
+            return []
 
     def server_nodes(self) -> list[dict[str, Any]]:
         """Where each running server is: its Ray node id and that node's custom resources."""
