@@ -19,8 +19,8 @@ import grpc
 from robogym_ray.errors import RoboGymRayError
 from robogym_ray.protocol import server_manager_pb2 as sm
 from robogym_ray.protocol import server_manager_pb2_grpc as sm_grpc
+from robogym_ray.robots.ports import grpc_server, listen
 from robogym_ray.robots.registry import check_options
-from robogym_ray.robots.server import grpc_server, listen
 from robogym_ray.supervision.launch import LaunchSpec, parse_launch_cmd
 from robogym_ray.supervision.server_host import ServerSpec
 from robogym_ray.supervision.supervisor import Supervisor
