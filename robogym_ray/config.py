@@ -235,6 +235,19 @@ def read_json(path: str | os.PathLike, what: str = "config file") -> Any:
         raise ConfigError(f"cannot read {what} {path}: {clip_text(str(exc), 200)}") from None
 
 
+def check_dir_path(path: str | os.PathLike, what: str) -> None:
+    """ConfigError when ``path`` cannot be (or become) a directory: it, or the nearest of its
+    parents that exists, is something else. Checked before the work whose output goes there;
+    ``mkdir`` would find it only afterwards and lose that work."""
+    given = Path(path)
+    for existing in (given, *given.parents):
+        if existing.exists():
+            if not existing.is_dir():
+                raise ConfigError(f"{what} {quote_name(str(given))}: {existing} exists and is "
+                                  "not a directory")  # fmt: skip
+            return
+
+
 def check_address(address: object, what: str) -> None:
     """ConfigError unless ``address`` is ``HOST:PORT`` with a port in [1, 65535]."""
     host, sep, port = address.rpartition(":") if isinstance(address, str) else ("", "", "")

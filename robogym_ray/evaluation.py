@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from robogym_ray.config import check_address, quote
+from robogym_ray.config import check_address, check_dir_path, quote
 from robogym_ray.envs import outcomes
 from robogym_ray.envs.outcomes import CATEGORIES
 from robogym_ray.envs.registration import variant_id
@@ -87,9 +87,8 @@ class EvaluationConfig:
         if self.rs_address is not None:
             check_address(self.rs_address, "--rs-address")
         for flag, where in (("--out", self.out), ("--video", self.video)):
-            # Found only after every episode ran, this would lose the evaluation.
-            if where is not None and Path(where).exists() and not Path(where).is_dir():
-                raise ConfigError(f"{flag} {where} exists and is not a directory")
+            if where is not None:
+                check_dir_path(where, flag)
 
 
 @dataclass(frozen=True)

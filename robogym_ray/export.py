@@ -25,7 +25,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from robogym_ray.config import check_fields, quote, read_json
+from robogym_ray.config import check_dir_path, check_fields, quote, read_json
 from robogym_ray.errors import ConfigError
 from robogym_ray.learner.checkpoint import policy_weights, read
 from robogym_ray.text import clip_text
@@ -144,6 +144,7 @@ def export_policy(
     """Write the checkpoint's policy as TorchScript to ``out`` plus its sidecar JSON."""
     if Path(out).is_dir():  # checked before anything is loaded or written
         raise ConfigError(f"export OUT {out} is a directory; name the file to write")
+    check_dir_path(Path(out).parent, "export OUT's directory")
     policy, info = load_checkpoint_policy(checkpoint, online)
     env_id = env_id or env_id_of_run(checkpoint)
     low, high = action_bounds(env_id) if env_id else (None, None)

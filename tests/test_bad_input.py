@@ -169,6 +169,22 @@ def test_train_init_from_with_a_broken_replay(tmp_path: Path, capfd: pytest.Capt
     assert f"cannot read replay {replay_path(source)}" in line
 
 
+def test_a_rerun_checks_its_own_checkpoint(tmp_path: Path, capfd: pytest.CaptureFixture) -> None:
+    """A re-run of --run-name with other network sizes than its checkpoint's (the learner would
+    crash restoring it, after Ray had started)."""
+    runs = tmp_path / "runs"
+    own = runs / "r" / "checkpoints" / "learner.pt"
+    own.parent.mkdir(parents=True)
+    learner_file(own, 3, 1, policy_hidden=(16,), critic_hidden=(16,))
+    capfd.readouterr()
+    argv = ["train", "--logdir", str(runs), "--run-name", "r", "--total-steps", "10"]
+    assert main([*argv, "--task", "pendulum"]) == 2
+    line = capfd.readouterr().err.strip()
+    assert line.startswith(f"error: this run's own checkpoint (a re-run continues from it) {own}")
+    assert "not a D4PG checkpoint for obs_dim=3" in line and "\n" not in line
+    assert sorted(p.name for p in runs.rglob("*")) == ["checkpoints", "learner.pt", "r"]
+
+
 def test_a_good_init_from_passes_the_check(tmp_path: Path) -> None:
     source = learner_file(tmp_path / "learner.pt", 3, 1, **PENDULUM)  # type: ignore[arg-type]
     d4pg = D4PGConfig(**PENDULUM)  # type: ignore[arg-type]
@@ -258,6 +274,22 @@ def test_train_checks_cpus_and_logdir_before_ray(
     runs.write_text("a file")
     line = fails(capfd, "train", "--logdir", str(runs), "--task", "pendulum")
     assert "exists and is not a directory" in line
+
+
+def test_outputs_under_a_file_are_refused_before_the_work(
+    tmp_path: Path, capfd: pytest.CaptureFixture
+) -> None:
+    """``--out notes.txt/eval`` used to fail in mkdir after every episode had run."""
+    notes = tmp_path / "notes.txt"
+    notes.write_text("keep")
+    good = learner_file(tmp_path / "learner.pt", 20, 2, policy_hidden=(16,), critic_hidden=(16,))
+    line = fails(capfd, "evaluate", str(good), "--out", str(notes / "eval"))
+    assert line.endswith(f"{notes} exists and is not a directory") and "--out" in line
+    line = fails(capfd, "export", str(good), str(notes / "sub" / "policy.ts"))
+    assert line.endswith(f"{notes} exists and is not a directory")
+    line = fails(capfd, "train", "--logdir", str(notes / "runs"), "--task", "pendulum")
+    assert line.endswith(f"{notes} exists and is not a directory")
+    assert notes.read_text() == "keep"
 
 
 def test_one_line_in_a_fresh_process(tmp_path: Path) -> None:

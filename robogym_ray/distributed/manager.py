@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 from robogym_ray.config import add_config_args, check_port, check_ray_address, config_from_args
 from robogym_ray.errors import ConfigError
-from robogym_ray.robots.server import check_port_free
+from robogym_ray.robots.ports import check_port_free
 from robogym_ray.supervision.manager_service import ManagerLimits
 from robogym_ray.supervision.restart_policy import RestartPolicy
 from robogym_ray.supervision.supervisor import SupervisorConfig

@@ -21,6 +21,7 @@ import io
 import json
 import os
 import pickle
+import shutil
 import warnings
 import zipfile
 from collections.abc import Iterator, Mapping
@@ -70,6 +71,17 @@ def write_bytes(path: str | os.PathLike, data: bytes | memoryview, what: str) ->
         f.write(data)
         f.flush()
         os.fsync(f.fileno())  # a write error that shows only on flush surfaces before the rename
+    return path
+
+
+def copy_file(source: str | os.PathLike, path: str | os.PathLike, what: str) -> Path:
+    """``source`` copied to ``path`` the way ``write_bytes`` writes (a temporary name beside
+    it, synced, renamed): a full disk leaves no partial ``path`` behind."""
+    path = Path(path)
+    with _replacing(path, what) as tmp:
+        shutil.copyfile(source, tmp)
+        with open(tmp, "rb+") as f:
+            os.fsync(f.fileno())
     return path
 
 

@@ -9,7 +9,14 @@ from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any
 
-from robogym_ray.config import add_config_args, check_fields, merge_config, quote, read_json
+from robogym_ray.config import (
+    add_config_args,
+    check_dir_path,
+    check_fields,
+    merge_config,
+    quote,
+    read_json,
+)
 from robogym_ray.errors import ConfigError
 from robogym_ray.learner.config import D4PGConfig
 from robogym_ray.robots.emulation import EmulationConfig
@@ -106,23 +113,25 @@ def check_inputs(setup: TrainSetup) -> None:
         raise ConfigError(str(exc).replace(repr(cfg.task), quote(cfg.task))) from None
     d4pg = d4pg_for(preset, setup.d4pg)
     logdir = Path(cfg.logdir)
-    for path in (logdir, logdir / cfg.run_name if cfg.run_name else None):
-        if path is not None and path.exists() and not path.is_dir():
-            raise ConfigError(f"--logdir/--run-name: {path} exists and is not a directory")
+    check_dir_path(logdir / cfg.run_name if cfg.run_name else logdir, "--logdir/--run-name")
     if cfg.address is None:  # the local Ray gets num_cpus, or (at most) all of this machine
         run_setup.check_resources(cfg, cfg.num_cpus or float(os.cpu_count() or 1))
-    # A re-run whose directory has its own checkpoint ignores --init-from (seed_checkpoint).
-    own = cfg.run_name and (logdir / cfg.run_name / "checkpoints" / CHECKPOINT_NAME).exists()
-    init_from = None if own else cfg.init_from
+    # A re-run whose directory has its own checkpoint continues from it and ignores
+    # --init-from (seed_checkpoint); that checkpoint is checked the same way (a re-run with
+    # other network sizes would otherwise crash its learner actor after Ray started).
+    own = logdir / cfg.run_name / "checkpoints" / CHECKPOINT_NAME if cfg.run_name else None
+    init_from, label = cfg.init_from, "--init-from"
+    if own is not None and own.exists():
+        init_from, label = str(own), "this run's own checkpoint (a re-run continues from it)"
     # The file first: probing the env below imports pybullet, whose banner goes to stderr.
-    state = run_setup.read_init_from(init_from) if init_from else None
+    state = run_setup.read_init_from(init_from, label) if init_from else None
     probe = make_gym_env(preset.env_id)()  # dimensions only: it never resets, so no server
     try:
         obs_dim, act_dim = box_dims(probe)
     finally:
         probe.close()
     if init_from:
-        run_setup.check_init_from(init_from, d4pg, obs_dim, act_dim, state)
+        run_setup.check_init_from(init_from, d4pg, obs_dim, act_dim, state, label)
     else:
         run_setup.learner_networks(d4pg, obs_dim, act_dim)
 

@@ -10,6 +10,7 @@ from typing import Any
 import ray
 from ray.exceptions import RayActorError
 
+from robogym_ray.errors import DiskWriteError
 from robogym_ray.experience.evaluator import VIDEO_KEY
 from robogym_ray.training import stats
 from robogym_ray.training.program import Program
@@ -25,6 +26,8 @@ class EvalSchedule:
         self.p, self.cfg, self.stats = program, program.cfg, run_stats
         self.weights_ref: Any = None
         self.next_at = 0.0
+        self.failure: DiskWriteError | None = None
+        """The best policy could not be written (a full disk): the loop ends the run on it."""
 
     def start(self, episodes: int = 1) -> Any:
         """Start a call of ``episodes`` greedy episodes (a selector's own count when it has
@@ -79,7 +82,10 @@ class EvalSchedule:
             selector = self.p.selector
             if selector is not None and selector.better(self.stats.eval):
                 weights, version = ray.get(self.weights_ref)
-                selector.keep(self.stats.eval, weights, version, self.stats.env_steps)
+                try:
+                    selector.keep(self.stats.eval, weights, version, self.stats.env_steps)
+                except DiskWriteError as exc:  # the last good policy-best.pt is kept
+                    self.failure = self.failure or exc
         except RayActorError:
             # The call fails too when its weights came from a learner that died (Ray restarts
             # it): then only this evaluation is lost. Only a dead evaluator stops evaluating.

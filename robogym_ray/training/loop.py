@@ -47,8 +47,12 @@ class LearnerDeaths:
     def __init__(self, learner: Any, wait_s: float = 120.0) -> None:
         self.learner, self.wait_s = learner, wait_s
         self.count = 0
-        self._dead: set[int | None] = set()
         self.pid = self._ask()
+        # Every pid the learner ever had: a late answer from a dead process is not a new death.
+        self._seen: set[int] = set() if self.pid is None else {self.pid}
+        # The learner did not answer after a failure: that death is counted already, so the
+        # pid it comes back with (slower than wait_s) is not another.
+        self._unanswered = self.pid is None
 
     def _ask(self) -> int | None:
         """The learner's pid; waits out a restart (restoring a checkpoint and replay takes
@@ -68,22 +72,28 @@ class LearnerDeaths:
     def call_failed(self) -> bool:
         """A learner call failed; True when that is a death not counted yet."""
         now = self._ask()
-        if now is not None and now == self.pid:
-            return False  # the death of an earlier pid (counted then), or the sender's
-        return self._died(now)
+        if now is not None:
+            return self._new_pid(now)  # same pid: an earlier death, or the sender's
+        if self._unanswered:
+            return False
+        self._unanswered = True
+        self.count += 1
+        return True
 
     def answered(self, pid: int) -> None:
         """A call returned from ``pid``: a new pid is a death whose calls never failed here."""
-        if pid != self.pid:
-            self._died(pid)
+        self._new_pid(pid)
 
-    def _died(self, now: int | None) -> bool:
-        new = self.pid not in self._dead
-        self._dead.add(self.pid)
-        self.count += new
-        if now is not None:  # unanswered: the next failed call asks again
-            self.pid = now
-        return new
+    def _new_pid(self, pid: int) -> bool:
+        if pid in self._seen:
+            return False
+        self._seen.add(pid)
+        self.pid = pid
+        if self._unanswered:
+            self._unanswered = False
+            return False
+        self.count += 1
+        return True
 
 
 class TrainingLoop:
@@ -146,12 +156,22 @@ class TrainingLoop:
             if not self._done(in_flight):
                 pending[self._collect(slot)] = slot
             eval_ref = self.evals.poll(eval_ref, logger, self._wall())
+            self._check_disk(logger)
             if logger.due(cfg.log_every_s):  # scalars cost a supervisor round trip
                 logger.write(self._scalars(), self.stats.env_steps)
         self._drain_learner(learner_calls, block=True, all_=True)
-        if self.failure is None:  # a run stopped by a full disk reports that, not a policy
+        if not self._check_disk(logger):  # a full disk's run reports that, not a policy
             self.evals.final(eval_ref, logger, self._wall())  # the final policy, evaluated
+            self._check_disk(logger)
         return finish(self.p, self.stats, logger, self._scalars, self._wall, self.failure)
+
+    def _check_disk(self, logger: Any) -> bool:
+        """Whether a file could not be written (a full disk): a checkpoint, TensorBoard's
+        events or the best policy. The first such failure stops the run; finish() reports it."""
+        self.failure = self.failure or logger.error or self.evals.failure
+        if self.failure is not None:
+            self.stop.set()
+        return self.failure is not None
 
     def _done(self, in_flight: int = 0) -> bool:
         """Whether collecting should stop: enough steps (counting those in flight), the wall

@@ -47,17 +47,23 @@ class SnapshotSelector:
 
     def keep(self, result: Mapping[str, float], weights: Mapping[str, np.ndarray], version: int,
              env_steps: int) -> None:  # fmt: skip
-        """Write ``weights`` as the best policy (atomically: a crash never leaves half a file)."""
-        self.best = score(result)
-        self.record = {
+        """Write ``weights`` as the best policy (atomically: a crash never leaves half a file).
+
+        Raises:
+            DiskWriteError: the file could not be written; the best before it stays the record
+                (its file untouched), so the summary never names a policy that is not there.
+        """
+        best = score(result)
+        record = {
             "path": str(self.path),
             "learner_steps": int(version),
             "env_steps": int(env_steps),
-            "success_rate": self.best[0],
-            "return": round(self.best[1], 3),
+            "success_rate": best[0],
+            "return": round(best[1], 3),
             "snapshots_scored": self.scored,
         }
-        write_policy(self.path, weights, selection=self.record)
+        write_policy(self.path, weights, selection=record)
+        self.best, self.record = best, record
 
     def summary(self) -> dict[str, Any]:
         return {**self.record, "snapshots_scored": self.scored}

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import logging
 import os
-import shutil
 from collections import Counter
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -23,7 +22,7 @@ from robogym_ray.errors import ConfigError
 from robogym_ray.experience.revisits import FailedStartRevisits
 from robogym_ray.experience.rollout import make_gym_env
 from robogym_ray.learner import checkpoint
-from robogym_ray.learner.checkpoint import CHECKPOINT_NAME, replay_path
+from robogym_ray.learner.checkpoint import CHECKPOINT_NAME, copy_file, replay_path
 from robogym_ray.learner.config import D4PGConfig
 from robogym_ray.learner.learner import linear_ramp, make_adam
 from robogym_ray.learner.networks import DistributionalCritic, Policy
@@ -194,12 +193,13 @@ def learner_networks(
     return policy, critic
 
 
-def read_init_from(init_from: str) -> dict[str, Any]:
+def read_init_from(init_from: str, label: str = "--init-from") -> dict[str, Any]:
     """The learner checkpoint ``init_from``, checked as a file (readable, complete, its replay
-    readable); what needs the task's dimensions is ``check_init_from``'s."""
+    readable); what needs the task's dimensions is ``check_init_from``'s. ``label``: what the
+    file is to the user, for the error."""
     source = Path(init_from)
     if not source.is_file():
-        raise ConfigError(f"--init-from {init_from}: no such checkpoint file")
+        raise ConfigError(f"{label} {init_from}: no such checkpoint file")
     state = checkpoint.read(source)
     checkpoint.check_learner_state(state, source)
     if replay_path(source).is_file():
@@ -213,13 +213,14 @@ def check_init_from(
     obs_dim: int,
     act_dim: int,
     state: dict[str, Any] | None = None,
+    label: str = "--init-from",
 ) -> dict[str, Any]:
     """The learner checkpoint ``init_from`` (``state``: already read by ``read_init_from``),
     loaded into this run's networks and optimisers as the learner will, on CPU and writing
     nothing: a bad file fails before Ray starts, in one line, not in a learner actor that
     crashes and restarts."""
     if state is None:
-        state = read_init_from(init_from)
+        state = read_init_from(init_from, label)
     policy, critic = learner_networks(d4pg, obs_dim, act_dim)
     nets = state["nets"]
     try:
@@ -232,7 +233,7 @@ def check_init_from(
         make_adam(critic.parameters(), d4pg.critic_lr).load_state_dict(state["opts"]["critic"])
     except Exception as exc:  # noqa: BLE001 - any failure means "not a checkpoint for this run"
         raise ConfigError(
-            f"--init-from {init_from}: not a D4PG checkpoint for obs_dim={obs_dim}, "
+            f"{label} {init_from}: not a D4PG checkpoint for obs_dim={obs_dim}, "
             f"act_dim={act_dim}, policy_hidden={list(d4pg.policy_hidden)}, "
             f"critic_hidden={list(d4pg.critic_hidden)}, num_atoms={d4pg.num_atoms}, "
             f"layer_norm={d4pg.layer_norm} ({type(exc).__name__}: {clip_text(str(exc), 300)})"
@@ -254,10 +255,11 @@ def seed_checkpoint(
         return False
     source = Path(init_from)
     state = check_init_from(init_from, d4pg, obs_dim, act_dim)
-    checkpoint_dir.mkdir(parents=True, exist_ok=True)
-    shutil.copy2(source, target)
+    # The replay first: learner.pt marks the run's own checkpoint, so a copy cut off by a full
+    # disk leaves none, and the re-run copies again (copy_file leaves no partial file).
     if replay_path(source).is_file():
-        shutil.copy2(replay_path(source), replay_path(target))
+        copy_file(replay_path(source), replay_path(target), "learner replay")
+    copy_file(source, target, "learner checkpoint")
     log.info("continuing from %s (step %d)", source, int(state["num_steps"]))
     return True
 

@@ -60,6 +60,36 @@ def test_a_run_whose_evaluator_finished_nothing_evaluates_its_final_policy(
     assert ray.is_initialized()
 
 
+def test_a_best_policy_that_cannot_be_written_ends_the_run_and_keeps_the_last_record(
+    tmp_path: Path,
+) -> None:
+    """The selector's write fails (here its directory is a file; a full disk fails the same
+    way): the schedule keeps the error for the loop to end the run on, and the selection record
+    still names no file that was not written."""
+    from robogym_ray.errors import DiskWriteError
+
+    cfg = TrainConfig(
+        task=NAV, workers=1, total_steps=1000, logdir=str(tmp_path), run_name="best",
+        progress=False, select_episodes=2,
+    )  # fmt: skip
+    preset = resolve_task(cfg.task)
+    program = Program(cfg, d4pg_for(preset, None), preset, EmulationConfig())
+    logger = RunLogger(program.run_dir, total=cfg.total_steps, progress=False)
+    try:
+        blocker = tmp_path / "not-a-directory"
+        blocker.write_text("")
+        program.selector.path = blocker / "policy-best.pt"
+        schedule = EvalSchedule(program, RunStats())
+        schedule.final(schedule.start(), logger, wall_s=1.0)
+        assert isinstance(schedule.failure, DiskWriteError)
+        assert str(schedule.failure).startswith(f"cannot write policy file {blocker}/")
+        assert program.selector.record == {} and program.selector.best is None
+        assert blocker.read_text() == ""
+    finally:
+        logger.close()
+        program.shutdown()
+
+
 def test_the_final_evaluation_needs_at_least_one_episode() -> None:
     from robogym_ray.errors import ConfigError
 

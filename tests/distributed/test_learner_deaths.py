@@ -58,6 +58,11 @@ def test_one_learner_death_is_one_failure_however_many_calls_fail(tmp_path: Path
         assert deaths.pid != first  # the restarted learner's
         # A later call that fails because its sender died is no learner death either.
         assert not deaths.call_failed() and deaths.count == 1
+        # A late answer from the dead process (its call was queued behind a failed one) is
+        # neither a death nor the learner's pid now.
+        second = deaths.pid
+        deaths.answered(first)
+        assert deaths.count == 1 and deaths.pid == second
         # A second death counts again, also when only a returned call reveals it.
         ray.get(learner.add.remote(batch(100, 1)))
         assert kill_with_calls_in_flight(learner, 2) == 2

@@ -1,6 +1,7 @@
-"""The save path on a full disk (a real tmpfs, ``tests/full_disk.py``): a checkpoint, replay or
-policy file that cannot be written raises ``DiskFullError`` naming the file a user knows, leaves
-no temporary file, and leaves the last good checkpoint as it was, loadable."""
+"""The save path on a full disk (a real tmpfs, ``tests/full_disk.py``): a checkpoint, replay,
+policy file or ``--init-from`` copy that cannot be written raises ``DiskFullError`` naming the
+file a user knows, leaves no temporary file, and leaves the last good checkpoint as it was,
+loadable."""
 
 from __future__ import annotations
 
@@ -55,6 +56,15 @@ def probe(disk: str) -> None:
         f.truncate(filler.stat().st_size - good.stat().st_size - 65536)
     out["with_replay"] = _error(lambda: service.checkpoint(include_replay=True))
 
+    # --init-from copied into a new run's directory on a full disk: no partial learner.pt,
+    # which a re-run would take for the run's own checkpoint.
+    from robogym_ray.training.setup import seed_checkpoint
+
+    fill(disk_dir)
+    seeded = disk_dir / "seeded"
+    out["seed"] = _error(lambda: seed_checkpoint(str(good), seeded, SMALL, OBS, ACT))
+    out["seeded_files"] = sorted(p.name for p in seeded.iterdir()) if seeded.exists() else []
+
     out["tmp"] = tmp_files(disk_dir)
     out["files"] = sorted(p.name for p in ckpt.iterdir())
     out["after"] = {"digest": _digest(good), "steps": int(checkpoint.read(good)["num_steps"])}
@@ -83,6 +93,11 @@ def test_saving_on_a_full_disk_raises_the_typed_error_and_leaves_the_last_checkp
     assert out["with_replay"]["type"] == "DiskFullError"
     assert out["with_replay"]["what"] == "learner replay"
     assert out["with_replay"]["path"] == f"{good}.replay.npz"
+
+    assert out["seed"]["type"] == "DiskFullError"
+    assert out["seed"]["path"] == str(disk / "seeded" / "learner.pt")
+    assert out["seed"]["what"] == "learner checkpoint"
+    assert out["seeded_files"] == []
 
     assert out["tmp"] == []
     assert out["files"] == ["learner.pt"]
