@@ -10,9 +10,9 @@
 
 Both answer raw actions in the env's own units (IsaacReach: joint offsets before its x0.5
 scale), not [-1, 1] as our own exported policies do. ``IsaacLabPolicy`` maps them onto
-[-1, 1] by the env's action bounds, so the one greedy-episode loop clips them at robo-gym's
-bounds exactly as robo-gym's env does. The ONNX file needs only ``onnxruntime`` (the ``onnx``
-extra), not torch.
+[-1, 1] by the env's action bounds, so the one greedy-episode loop clips them at the env's
+bounds (robo-gym 2.1.0 does not clip them: docs/protocol.md). The ONNX file needs only
+``onnxruntime`` (the ``onnx`` extra), not torch.
 """
 
 from __future__ import annotations
@@ -79,6 +79,9 @@ def _load_torchscript(path: Path) -> tuple[Any, int, int]:
             f"{path}: a TorchScript file without actor.<i>.weight layers - not an rsl_rl export "
             "(Isaac Lab's play.py writes policy.pt with the actor behind its normaliser)"
         )
+    if any(name.startswith("rnn.") for name, _ in module.named_parameters()):
+        # Its actor's input is the RNN's hidden state: the sizes below would be wrong.
+        raise ConfigError(f"{path}: a recurrent rsl_rl policy (rnn.*); only MLP actors run here")
     ordered = [w for _, w in sorted(layers.items())]
     obs_dim, act_dim = int(ordered[0].shape[1]), int(ordered[-1].shape[0])
     module.eval()

@@ -71,14 +71,17 @@ def write_onnx(module: Any, obs_dim: int, path: str | Path) -> None:
     TorchScript-based export (``dynamo=False``): exact for a fixed MLP; it needs the ``onnx``
     package (the ``onnx`` extra), not ``onnxscript``.
     """
+    import inspect
     import warnings
 
     import torch
 
+    # torch < 2.5 has only the TorchScript exporter, and no ``dynamo`` argument to ask for it.
+    which = {"dynamo": False} if "dynamo" in inspect.signature(torch.onnx.export).parameters else {}
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the TorchScript exporter's deprecation notice
         torch.onnx.export(
             module, (torch.zeros(1, obs_dim),), str(path), input_names=["obs"],
             output_names=["actions"], dynamic_axes={"obs": {0: "batch"}, "actions": {0: "batch"}},
-            opset_version=OPSET, dynamo=False,
+            opset_version=OPSET, **which,
         )  # fmt: skip

@@ -6,8 +6,15 @@ import os
 import shutil
 import subprocess
 from collections.abc import Iterator
+from typing import Any
 
+import grpc
 import pytest
+
+from robogym_ray.protocol import server_manager_pb2_grpc as sm_grpc
+from robogym_ray.supervision.manager_service import serve_manager
+from robogym_ray.supervision.spawners import InProcessSpawner
+from robogym_ray.supervision.supervisor import Supervisor, SupervisorConfig
 
 # Ray 2.60 enables token auth by default; `ray start` / `ray job submit` in the tests and the
 # embedded `ray.init` must see the same mode, so the whole suite runs with it disabled.
@@ -38,3 +45,15 @@ def x_display() -> Iterator[str]:
     yield f":{number}"
     proc.terminate()
     proc.wait(timeout=10)
+
+
+@pytest.fixture
+def manager() -> Iterator[Any]:
+    """A ServerManager stub for an in-process Supervisor (servers in this process, no Ray)."""
+    sup = Supervisor(SupervisorConfig(probe_interval_s=0), InProcessSpawner())
+    server, port = serve_manager(sup, "127.0.0.1", 0)
+    channel = grpc.insecure_channel(f"127.0.0.1:{port}")
+    yield sm_grpc.ServerManagerStub(channel)
+    channel.close()
+    server.stop(grace=None)
+    sup.shutdown()

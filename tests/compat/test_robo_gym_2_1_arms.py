@@ -32,7 +32,6 @@ from scipy.spatial.transform import Rotation
 from robogym_ray.protocol import robot_server_pb2 as rs
 from robogym_ray.protocol import robot_server_pb2_grpc as rs_grpc
 from robogym_ray.protocol import server_manager_pb2 as sm
-from robogym_ray.protocol import server_manager_pb2_grpc as sm_grpc
 from robogym_ray.robots.panda.model import forward_kinematics as panda_fk
 from robogym_ray.robots.panda.state import RS_MODE_KEYS as PANDA_KEYS
 from robogym_ray.robots.server import ERROR_METADATA_KEY
@@ -40,9 +39,6 @@ from robogym_ray.robots.ur.geometry import ROS_FROM_ENV
 from robogym_ray.robots.ur.geometry import forward_kinematics as ur_fk
 from robogym_ray.robots.ur.state import POSITION_KEYS as UR_POSITION_KEYS
 from robogym_ray.robots.ur.state import RS_MODE_KEYS as UR_KEYS
-from robogym_ray.supervision.manager_service import serve_manager
-from robogym_ray.supervision.spawners import InProcessSpawner
-from robogym_ray.supervision.supervisor import Supervisor, SupervisorConfig
 
 S9, S13 = " " * 9, " " * 13
 _UR = "roslaunch ur_robot_server ur_robot_server.launch"
@@ -94,17 +90,6 @@ TOOL1_IN_TOOL0 = Rotation.from_euler("ZYX", [3.1415, -1.5707, 0.0])
 # 1.035 m), beyond the tabletop (x up to 0.45 m); found with the numpy FK, checked below.
 ABOVE = [0.0, -0.9007, 1.9111, -2.5812, -1.5708, 0.0]
 BELOW = [0.0, -0.8104, 1.9047, -2.6651, -1.5708, 0.0]
-
-
-@pytest.fixture
-def manager() -> Iterator[Any]:
-    sup = Supervisor(SupervisorConfig(probe_interval_s=0), InProcessSpawner())
-    server, port = serve_manager(sup, "127.0.0.1", 0)
-    channel = grpc.insecure_channel(f"127.0.0.1:{port}")
-    yield sm_grpc.ServerManagerStub(channel)
-    channel.close()
-    server.stop(grace=None)
-    sup.shutdown()
 
 
 @contextmanager

@@ -9,9 +9,6 @@ reward nodes compose in ``_get_initial_state_msg``.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-from typing import Any
-
 import grpc
 import numpy as np
 import pytest
@@ -19,12 +16,8 @@ import pytest
 from robogym_ray.protocol import robot_server_pb2 as rs
 from robogym_ray.protocol import robot_server_pb2_grpc as rs_grpc
 from robogym_ray.protocol import server_manager_pb2 as sm
-from robogym_ray.protocol import server_manager_pb2_grpc as sm_grpc
 from robogym_ray.robots.panda.model import forward_kinematics
 from robogym_ray.robots.panda.state import RS_MODE_KEYS
-from robogym_ray.supervision.manager_service import serve_manager
-from robogym_ray.supervision.spawners import InProcessSpawner
-from robogym_ray.supervision.supervisor import Supervisor, SupervisorConfig
 
 SP = " " * 9
 _COMMON = (
@@ -45,17 +38,6 @@ EE_CMD = (
 )  # fmt: skip
 START = [-0.018, -0.76, 0.02, -2.342, 0.03, 1.541, 0.753]
 """robo-gym 2.1.0's default Panda joint positions (what SetState carries)."""
-
-
-@pytest.fixture
-def manager() -> Iterator[Any]:
-    sup = Supervisor(SupervisorConfig(probe_interval_s=0), InProcessSpawner())
-    server, port = serve_manager(sup, "127.0.0.1", 0)
-    channel = grpc.insecure_channel(f"127.0.0.1:{port}")
-    yield sm_grpc.ServerManagerStub(channel)
-    channel.close()
-    server.stop(grace=None)
-    sup.shutdown()
 
 
 def _positions(sd) -> list[float]:

@@ -67,6 +67,19 @@ class PolicyExporter(nn.Module):
         pass
 
 
+class RecurrentExporter(nn.Module):
+    """The shape of rsl_rl's recurrent export: ``actor(rnn(obs))``."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.rnn = nn.GRU(25, 32)
+        self.actor = nn.Sequential(nn.Linear(32, 6))
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        out, _ = self.rnn(x.unsqueeze(0))
+        return self.actor(out.squeeze(0))
+
+
 def isaac_lab_export(folder: Path, obs_dim: int, act_dim: int) -> tuple[Path, Path, nn.Module]:
     """``policy.pt`` and ``policy.onnx`` as Isaac Lab's play.py writes them."""
     folder.mkdir(parents=True, exist_ok=True)
@@ -176,6 +189,10 @@ def test_files_of_the_wrong_kind_or_shape_are_refused(ur10_files, tmp_path, capf
     torch.jit.script(nn.Sequential(nn.Linear(25, 6))).save(str(plain))
     assert "not an rsl_rl export" in one_error_line(
         capfd, "run-policy", "--isaac-lab", str(plain), "--env-id", UR10)  # fmt: skip
+    recurrent = tmp_path / "recurrent.pt"  # rsl_rl's recurrent export: actor after an rnn
+    torch.jit.script(RecurrentExporter()).save(str(recurrent))
+    assert "a recurrent rsl_rl policy" in one_error_line(
+        capfd, "run-policy", "--isaac-lab", str(recurrent), "--env-id", UR10)  # fmt: skip
     other = tmp_path / "policy.zip"
     other.write_bytes(b"x")
     assert "policy.pt (TorchScript) or policy.onnx" in one_error_line(
