@@ -48,8 +48,10 @@ def x_display() -> Iterator[str]:
 
 
 @pytest.fixture
-def manager() -> Iterator[Any]:
-    """A ServerManager stub for an in-process Supervisor (servers in this process, no Ray)."""
+def inprocess_manager() -> Iterator[Any]:
+    """A ServerManager stub for an in-process Supervisor (servers in this process, no Ray).
+
+    Not named ``manager``: tests/compat has a session fixture of that name (a CLI manager)."""
     sup = Supervisor(SupervisorConfig(probe_interval_s=0), InProcessSpawner())
     server, port = serve_manager(sup, "127.0.0.1", 0)
     channel = grpc.insecure_channel(f"127.0.0.1:{port}")

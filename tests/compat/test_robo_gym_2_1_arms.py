@@ -136,8 +136,10 @@ def test_the_commands_are_robo_gym_2_1_0s_byte_for_byte() -> None:
     ],
     ids=["IsaacReachUR", "EmptyEnvironment2UR", "EndEffectorPositioning2UR"],
 )
-def test_modular_ur_envs_get_a_server_and_reset_it(manager, cmd, rs_mode, start, params) -> None:
-    with robot_server(manager, cmd) as robot:
+def test_modular_ur_envs_get_a_server_and_reset_it(
+    inprocess_manager, cmd, rs_mode, start, params
+) -> None:
+    with robot_server(inprocess_manager, cmd) as robot:
         assert robot.SetState(_ur_reset(start, **params), timeout=20).success
         state = robot.GetState(rs.Empty(), timeout=20)
         sd = state.state_dict
@@ -153,8 +155,10 @@ def test_modular_ur_envs_get_a_server_and_reset_it(manager, cmd, rs_mode, start,
         assert after.success and after.state_dict["shoulder_joint_position"] > start[1]
 
 
-def test_isaac_reach_ur_reports_tool1_tool0_turned_by_the_launch_files_rotation(manager) -> None:
-    with robot_server(manager, ISAAC_UR10) as robot:
+def test_isaac_reach_ur_reports_tool1_tool0_turned_by_the_launch_files_rotation(
+    inprocess_manager,
+) -> None:
+    with robot_server(inprocess_manager, ISAAC_UR10) as robot:
         for joints in (ISAAC_UR_START, [0.3, -1.2, 1.0, -0.7, 0.9, 1.1]):
             assert robot.SetState(_ur_reset(joints), timeout=20).success
             sd = robot.GetState(rs.Empty(), timeout=20).state_dict
@@ -170,24 +174,26 @@ def _collides(robot: Any, joints: list[float]) -> bool:
     return robot.GetState(rs.Empty(), timeout=20).state_dict["in_collision"] == 1.0
 
 
-def test_isaactabletop_puts_the_base_at_z_and_the_table_top_level_with_it(manager) -> None:
+def test_isaactabletop_puts_the_base_at_z_and_the_table_top_level_with_it(
+    inprocess_manager,
+) -> None:
     for joints, z in ((ABOVE, 0.03), (BELOW, -0.03)):
         xyz = ur_fk("ur10", joints)["tool0"][0]
         np.testing.assert_allclose(xyz[[0, 2]], [0.8, z], atol=1e-3)
     # z:=0.0 (as sent): the table top is at base_link height, 1.035 m long.
-    with robot_server(manager, ISAAC_UR10) as robot:
+    with robot_server(inprocess_manager, ISAAC_UR10) as robot:
         assert not _collides(robot, ABOVE)
         assert _collides(robot, BELOW)
     # z:=0.5: the base 0.5 m above the table top; the same pose is free.
-    with robot_server(manager, ISAAC_UR10.replace("z:=0.0", "z:=0.5")) as robot:
+    with robot_server(inprocess_manager, ISAAC_UR10.replace("z:=0.0", "z:=0.5")) as robot:
         assert not _collides(robot, BELOW)
     # robo-gym's tabletop world (base_link 0.1 m up by default): that table ends at x = 0.45 m.
-    with robot_server(manager, EE2_UR10) as robot:
+    with robot_server(inprocess_manager, EE2_UR10) as robot:
         assert not _collides(robot, BELOW)
 
 
-def test_isaac_reach_panda_gets_a_server_on_the_demo_table(manager) -> None:
-    with robot_server(manager, ISAAC_PANDA) as robot:
+def test_isaac_reach_panda_gets_a_server_on_the_demo_table(inprocess_manager) -> None:
+    with robot_server(inprocess_manager, ISAAC_PANDA) as robot:
         goals = dict(zip(PANDA_KEYS["only_robot"][:7], ISAAC_PANDA_START, strict=True))
         reset = rs.State(state_dict=goals, string_params={"object_0_function": "fixed_position"})
         reset.float_params.update(TARGET)
@@ -233,12 +239,12 @@ def _object_path(robot: Any, trajectory_id: float, steps: int = 20) -> np.ndarra
     return np.array(path)
 
 
-def test_fixed_trajectory_is_the_same_for_the_same_id_on_every_server(manager) -> None:
-    with robot_server(manager, RAAD_TEST_UR5) as first:
+def test_fixed_trajectory_is_the_same_for_the_same_id_on_every_server(inprocess_manager) -> None:
+    with robot_server(inprocess_manager, RAAD_TEST_UR5) as first:
         path_7 = _object_path(first, 7.0)
         path_8 = _object_path(first, 8.0)
         again_7 = _object_path(first, 7.0)  # after another trajectory: the same again
-    with robot_server(manager, RAAD_TEST_UR5) as second:
+    with robot_server(inprocess_manager, RAAD_TEST_UR5) as second:
         other_7 = _object_path(second, 7.0)
     np.testing.assert_array_equal(path_7, again_7)
     np.testing.assert_array_equal(path_7, other_7)
@@ -249,8 +255,8 @@ def test_fixed_trajectory_is_the_same_for_the_same_id_on_every_server(manager) -
 
 
 @pytest.mark.parametrize("bad_id", [50.0, -1.0, 2.5])
-def test_fixed_trajectory_ids_outside_0_to_49_are_refused(manager, bad_id) -> None:
-    with robot_server(manager, RAAD_TEST_UR5) as robot:
+def test_fixed_trajectory_ids_outside_0_to_49_are_refused(inprocess_manager, bad_id) -> None:
+    with robot_server(inprocess_manager, RAAD_TEST_UR5) as robot:
         before = _object_path(robot, 3.0, steps=1)
         reply, call = robot.SetState.with_call(_trajectory_reset(bad_id), timeout=20)
         assert not reply.success

@@ -47,9 +47,11 @@ def _positions(sd) -> list[float]:
 @pytest.mark.parametrize(
     ("cmd", "rs_mode", "length"), [(EMPTY_CMD, "only_robot", 304), (EE_CMD, "1object", 464)]
 )
-def test_robo_gym_2_1_panda_envs_start_drive_and_kill_a_panda(manager, cmd, rs_mode, length):
+def test_robo_gym_2_1_panda_envs_start_drive_and_kill_a_panda(
+    inprocess_manager, cmd, rs_mode, length
+):
     assert len(cmd) == length  # the exact strings robo-gym 2.1.0 sends
-    started = manager.StartNewServer(sm.RobotServer(cmd=cmd, gui=False), timeout=120)
+    started = inprocess_manager.StartNewServer(sm.RobotServer(cmd=cmd, gui=False), timeout=120)
     assert started.success, started.info
     channel = grpc.insecure_channel(f"127.0.0.1:{started.port}")
     robot = rs_grpc.RobotServerStub(channel)
@@ -85,4 +87,4 @@ def test_robo_gym_2_1_panda_envs_start_drive_and_kill_a_panda(manager, cmd, rs_m
         np.testing.assert_allclose(_positions(still.state_dict), _positions(after.state_dict))
     finally:
         channel.close()
-    assert manager.KillServer(sm.RobotServer(port=started.port), timeout=30).success
+    assert inprocess_manager.KillServer(sm.RobotServer(port=started.port), timeout=30).success
