@@ -4,16 +4,22 @@ on the same machine, for the same wall-clock budget, scored the same way.
     pip install -e ".[peers]"
     python experiments/peers.py train --algo sb3-td3 --problem navigation --minutes 50 --seed 0
     python experiments/peers.py evaluate runs/peers/navigation-sb3-td3-seed0
+    python experiments/peers.py evaluate RUN   # a robogym-ray train run: its timed snapshots
 
 ``train`` runs the algorithm as its users run it — Stable-Baselines3's documented defaults on one
 env made with ``gymnasium.make`` (robo-gym's own example is ``TD3(MlpPolicy, env)``; TD3 gets the
-Gaussian action noise, sigma 0.1, of SB3's TD3 example, without which it does not explore) — and
-saves the policy every ``--save-every-min`` minutes of wall time, named by that time. Nothing is
-evaluated on the training's clock. ``evaluate`` then scores every snapshot on ``--episodes``
-greedy episodes with reset seeds ``--seed``, ``--seed`` + 1, ... (1000-1099, as ``robogym-ray
-evaluate``), outcomes from ``info["final_status"]``, and writes ``curve.json``: success against
-wall time, like the D4PG evaluator's curve. ``run.json`` has what explains a curve: env steps,
-gradient updates per env step, env steps/s, the load average.
+Gaussian action noise, sigma 0.1, of SB3's TD3 example, without which it does not explore), or
+RLlib's PPO / SAC defaults with one env runner per core (``peers_rllib.py``; RLlib needs its own
+virtual environment, ``requirements/peers-rllib.txt``) — and saves the policy every
+``--save-every-min`` minutes of wall time, named by that time. Nothing is evaluated on the
+training's clock. ``run.json``, rewritten at every snapshot, has what explains a curve: env
+steps, gradient updates per env step, env steps/s, the load average.
+
+``evaluate`` scores every snapshot on ``--episodes`` greedy episodes with reset seeds
+``--seed``, ``--seed`` + 1, ... (1000-1099, as ``robogym-ray evaluate``), outcomes from
+``info["final_status"]``, and writes ``curve.json``: success against wall time. Given a
+``robogym-ray train`` run it scores the policies that run kept every ``policy_snapshot_every_s``
+(default 300 s), so D4PG's curve and the peers' are measured alike.
 """
 
 from __future__ import annotations
@@ -23,7 +29,7 @@ import json
 import os
 import platform
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -34,8 +40,26 @@ PROBLEMS = {
     "navigation": "RoboGymRay/ObstacleAvoidanceMir100Sim-v0",
     "positioning": "RoboGymRay/EndEffectorPositioningUR10Sim-v0",
 }
-ALGOS = ("sb3-td3", "sb3-sac")
-SNAPSHOT = "policy-{minutes:06.2f}min.zip"
+SB3_ALGOS = ("sb3-td3", "sb3-sac")
+ALGOS = (*SB3_ALGOS, "rllib-ppo", "rllib-sac")
+SNAPSHOT = "policy-{minutes:06.2f}min"  # + ".zip" for SB3; RLlib's checkpoint is a folder
+
+
+def _rllib() -> Any:
+    """``peers_rllib.py`` beside this file (imported by path: tests load this script by path)."""
+    import importlib.util
+
+    path = Path(__file__).with_name("peers_rllib.py")
+    spec = importlib.util.spec_from_file_location("peers_rllib", path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def snapshot_path(run_dir: Path, algo: str, minutes: float) -> Path:
+    name = SNAPSHOT.format(minutes=minutes)
+    return run_dir / "snapshots" / (f"{name}.zip" if algo in SB3_ALGOS else name)
 
 
 def _sb3_class(algo: str) -> Any:
@@ -55,90 +79,179 @@ def build(algo: str, env: gym.Env, seed: int) -> Any:
     return _sb3_class(algo)("MlpPolicy", env, **kwargs)
 
 
+class Run:
+    """What ``run.json`` says of a run, rewritten at every snapshot: a run cut short (a reboot, a
+    kill) keeps the record of what it saved, and its snapshots can still be evaluated."""
+
+    def __init__(self, algo: str, problem: str, minutes: float, seed: int, out: Path) -> None:
+        self.out, self.start, self.saved = out, time.perf_counter(), []
+        self.head = {
+            "algo": algo, "problem": problem, "env_id": PROBLEMS[problem], "seed": seed,
+            "minutes": minutes, "load_average_before": list(os.getloadavg()),
+            "machine": f"{platform.node()}, {os.cpu_count()} cpus",
+            "command": f"python experiments/peers.py train --algo {algo} --problem {problem} "
+                       f"--minutes {minutes:g} --seed {seed}",
+        }  # fmt: skip
+
+    def write(self, counters: dict[str, Any], complete: bool) -> dict[str, Any]:
+        """``counters``: env_steps, updates_per_env_step and what explains them."""
+        wall_s = time.perf_counter() - self.start
+        record = {
+            **self.head, "complete": complete, "wall_s": round(wall_s, 1), **counters,
+            "env_steps_per_s": round(counters["env_steps"] / wall_s, 1),
+            "snapshots": list(self.saved), "load_average_after": list(os.getloadavg()),
+        }  # fmt: skip
+        from robogym_ray.learner.checkpoint import write_bytes
+
+        # Replaced whole: a reader never sees half a record.
+        data = json.dumps(record, indent=2).encode()
+        write_bytes(self.out / "run.json", data, "run record")
+        return record
+
+
 def train(algo: str, problem: str, minutes: float, seed: int, out: Path,
           save_every_min: float = 5.0) -> dict[str, Any]:  # fmt: skip
     """Train until ``minutes`` of wall time are spent; snapshots under ``out/snapshots``."""
-    from stable_baselines3.common.callbacks import BaseCallback
-
     import robogym_ray  # noqa: F401 - registers the ids
 
-    snapshots = out / "snapshots"
-    snapshots.mkdir(parents=True, exist_ok=True)
+    (out / "snapshots").mkdir(parents=True, exist_ok=True)
+    if algo in SB3_ALGOS:
+        return _train_sb3(algo, problem, minutes, seed, out, save_every_min)
+    return _train_rllib(algo, problem, minutes, seed, out, save_every_min)
+
+
+def _train_sb3(algo: str, problem: str, minutes: float, seed: int, out: Path,
+               save_every_min: float) -> dict[str, Any]:  # fmt: skip
+    from stable_baselines3.common.callbacks import BaseCallback
+
     env = gym.make(PROBLEMS[problem])
     model = build(algo, env, seed)
-    load_before = os.getloadavg()
+
+    def counters() -> dict[str, Any]:
+        steps, updates = int(model.num_timesteps), int(model._n_updates)
+        return {"env_steps": steps, "gradient_updates": updates,
+                "updates_per_env_step": round(updates / max(steps, 1), 3)}  # fmt: skip
+
+    run = Run(algo, problem, minutes, seed, out)
 
     class WallClock(BaseCallback):
         """Saves the policy at each ``save_every_min`` of wall time; stops at the budget."""
 
-        def __init__(self) -> None:
-            super().__init__()
-            self.start = time.perf_counter()
-            self.saved: list[dict[str, float]] = []
-
         def save(self, minutes: float) -> None:
-            self.model.save(snapshots / SNAPSHOT.format(minutes=minutes))
-            self.saved.append({"wall_min": round(minutes, 2), "env_steps": self.num_timesteps})
+            self.model.save(snapshot_path(out, algo, minutes))
+            run.saved.append({"wall_min": round(minutes, 2), "env_steps": self.num_timesteps})
+            run.write(counters(), complete=False)
 
         def _on_step(self) -> bool:
-            elapsed = (time.perf_counter() - self.start) / 60.0
-            if elapsed >= save_every_min * (len(self.saved) + 1) and elapsed < minutes:
-                self.save(save_every_min * (len(self.saved) + 1))
+            elapsed = (time.perf_counter() - run.start) / 60.0
+            if elapsed >= save_every_min * (len(run.saved) + 1) and elapsed < minutes:
+                self.save(save_every_min * (len(run.saved) + 1))
             if elapsed >= minutes:
                 self.save(minutes)
                 return False
             return True
 
-    clock = WallClock()
     try:
-        model.learn(total_timesteps=10**10, callback=clock)
+        model.learn(total_timesteps=10**10, callback=WallClock())
     finally:
         env.close()
-    wall_s = time.perf_counter() - clock.start
-    record = {
-        "algo": algo, "problem": problem, "env_id": PROBLEMS[problem], "seed": seed,
-        "minutes": minutes, "wall_s": round(wall_s, 1), "env_steps": int(model.num_timesteps),
-        "env_steps_per_s": round(model.num_timesteps / wall_s, 1),
-        "gradient_updates": int(model._n_updates),
-        "updates_per_env_step": round(model._n_updates / max(model.num_timesteps, 1), 3),
-        "snapshots": clock.saved, "load_average_before": load_before,
-        "load_average_after": os.getloadavg(),
-        "machine": f"{platform.node()}, {os.cpu_count()} cpus",
-        "command": f"python experiments/peers.py train --algo {algo} --problem {problem} "
-                   f"--minutes {minutes:g} --seed {seed}",
-    }  # fmt: skip
-    (out / "run.json").write_text(json.dumps(record, indent=2))
-    return record
+    return run.write(counters(), complete=True)
+
+
+def _train_rllib(algo: str, problem: str, minutes: float, seed: int, out: Path,
+                 save_every_min: float) -> dict[str, Any]:  # fmt: skip
+    rllib = _rllib()
+    algo_obj = rllib.build(algo, PROBLEMS[problem], seed)
+    sizes = rllib.batch_sizes(algo_obj)
+    run = Run(algo, problem, minutes, seed, out)
+
+    def counters(c: dict[str, Any]) -> dict[str, Any]:
+        # Samples trained count every minibatch of every epoch: / minibatch = gradient updates.
+        updates = c["samples_trained"] / sizes["minibatch_size"]
+        return {**c, **sizes, "gradient_updates": int(updates),
+                "updates_per_env_step": round(updates / max(c["env_steps"], 1), 3)}  # fmt: skip
+
+    def save(mark: float, c: dict[str, Any]) -> None:
+        algo_obj.save_to_path(snapshot_path(out, algo, mark).resolve())
+        run.saved.append({"wall_min": round(mark, 2), "env_steps": c["env_steps"],
+                          "saved_at_min": c["saved_at_min"]})  # fmt: skip
+        run.write(counters(c), complete=False)
+
+    try:
+        final = rllib.train_loop(algo_obj, minutes, save_every_min, save)
+    finally:
+        algo_obj.stop()
+    return run.write(counters(final), complete=True)
 
 
 def evaluate(run_dir: Path, episodes: int = 100, seed: int = 1000) -> list[dict[str, Any]]:
-    """Score every snapshot of a run on the same greedy episodes; writes ``curve.json``."""
+    """Score every snapshot of a run on the same greedy episodes; writes ``curve.json``.
+
+    ``run_dir``: a peer's (it has ``run.json``) or a ``robogym-ray train`` run's (its timed
+    ``checkpoints/policy-MMM.MMmin.pt``, ``--policy-snapshot-every-s``): every curve is then
+    scored the same way.
+    """
     import robogym_ray  # noqa: F401 - registers the ids
     from robogym_ray.envs import outcomes
     from robogym_ray.evaluation import run_episodes
-    from robogym_ray.learner.behaviour import from_env_action
 
-    record = json.loads((run_dir / "run.json").read_text())
-    algo_class = _sb3_class(record["algo"])
-    env = gym.make(record["env_id"])
-    low, high = env.action_space.low, env.action_space.high
+    env_id, snapshots = _snapshots(run_dir)
+    env = gym.make(env_id)
     curve = []
     try:
-        for snap in record["snapshots"]:
-            path = run_dir / "snapshots" / SNAPSHOT.format(minutes=snap["wall_min"])
-            model = algo_class.load(path, device="cpu")
-
-            def policy(obs: np.ndarray, model: Any = model) -> np.ndarray:
-                # SB3 answers in the env's units; run_episodes takes [-1, 1].
-                return from_env_action(model.predict(obs, deterministic=True)[0], low, high)
-
-            statuses = [e.final_status for e in run_episodes(policy, env, episodes, seed)]
+        for snap, load in snapshots:
+            statuses = [e.final_status for e in run_episodes(load(env), env, episodes, seed)]
             curve.append({**snap, "episodes": episodes, **outcomes.rates(statuses)})
             print(json.dumps(curve[-1]), flush=True)
     finally:
         env.close()
     (run_dir / "curve.json").write_text(json.dumps(curve, indent=2))
     return curve
+
+
+Loader = Callable[[gym.Env], Callable[[np.ndarray], np.ndarray]]
+
+
+def _snapshots(run_dir: Path) -> tuple[str, list[tuple[dict[str, Any], Loader]]]:
+    """The run's env id, and each snapshot's record with a loader of its greedy policy
+    (``obs -> action in [-1, 1]``, what ``run_episodes`` takes)."""
+    if (run_dir / "run.json").exists():
+        record = json.loads((run_dir / "run.json").read_text())
+        algo = record["algo"]
+
+        def load(snap: dict[str, Any]) -> Loader:
+            path = snapshot_path(run_dir, algo, snap["wall_min"])
+            if algo not in SB3_ALGOS:
+                return lambda env: _rllib().load_policy(path)
+            from robogym_ray.learner.behaviour import from_env_action
+
+            def sb3(env: gym.Env) -> Callable[[np.ndarray], np.ndarray]:
+                model = _sb3_class(algo).load(path, device="cpu")
+                low, high = env.action_space.low, env.action_space.high
+                # SB3 answers in the env's units.
+                return lambda obs: from_env_action(model.predict(obs, deterministic=True)[0],
+                                                   low, high)  # fmt: skip
+
+            return sb3
+
+        return record["env_id"], [(snap, load(snap)) for snap in record["snapshots"]]
+    from robogym_ray.export import env_id_of_run, load_policy
+    from robogym_ray.learner.checkpoint import read
+
+    paths = sorted((run_dir / "checkpoints").glob("policy-*min.pt"))
+    if not paths:
+        raise SystemExit(
+            f"{run_dir}: no run.json (a peer's run) and no checkpoints/policy-*min.pt (a "
+            "robogym-ray train run with --policy-snapshot-every-s)"
+        )
+    env_id = env_id_of_run(paths[0])
+    if env_id is None:
+        raise SystemExit(f"{run_dir}: no config.json with the run's task")
+    snaps = []
+    for path in paths:
+        snap = {k: v for k, v in read(path)["snapshot"].items() if k != "path"}
+        snaps.append((snap, lambda env, path=path: load_policy(path)))
+    return env_id, snaps
 
 
 def main(argv: Sequence[str] | None = None) -> int:

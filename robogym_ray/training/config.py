@@ -120,6 +120,11 @@ class TrainConfig:
     kept as checkpoints/policy-best.pt (policy only; evaluate and export take it). The
     learner's own final state can be a worse draw: a greedy policy's success rate swings by a
     few points from one snapshot to the next. 0 = one new episode per snapshot, no selection."""
+    policy_snapshot_every_s: float = 300.0
+    """Every this many wall seconds the policy the evaluator scores (the average, with policy
+    averaging) is kept as checkpoints/policy-MMM.MMmin.pt (~0.5 MB each; evaluate and export
+    take it), so a run's success against wall time can be scored afterwards on the same fixed
+    episodes as any other policy's (experiments/peers.py evaluate). 0 = none."""
     worker_cpus: float = 0.25
     """Ray CPUs reserved per rollout worker (fractional: they mostly wait on their server)."""
     learner_cpus: float = 0.5
@@ -172,6 +177,7 @@ class TrainConfig:
             (self.real_robot_wait_s >= 0, "real_robot_wait_s", ">= 0"),
             (self.replay_snapshot_every_s >= 0, "replay_snapshot_every_s", ">= 0"),
             (self.video_interval_s >= 0, "video_interval_s", ">= 0"),
+            (self.policy_snapshot_every_s >= 0, "policy_snapshot_every_s", ">= 0"),
             (self.evaluator or not self.select_episodes, "select_episodes", "0 without evaluator"),
             (self.weight_sync_steps >= 1, "weight_sync_steps", ">= 1"),
             (self.sigma_min >= 0, "sigma_min", ">= 0"),

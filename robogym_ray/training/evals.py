@@ -1,5 +1,6 @@
 """When the evaluator runs during training, and what becomes of its results: the evaluation
-history, the ``eval/video`` GIF, and the snapshot the selector keeps."""
+history, the ``eval/video`` GIF, the snapshot the selector keeps, and the timed policy
+snapshots."""
 
 from __future__ import annotations
 
@@ -27,7 +28,7 @@ class EvalSchedule:
         self.weights_ref: Any = None
         self.next_at = 0.0
         self.failure: DiskWriteError | None = None
-        """The best policy could not be written (a full disk): the loop ends the run on it."""
+        """A policy file could not be written (a full disk): the loop ends the run on it."""
 
     def start(self, episodes: int = 1) -> Any:
         """Start a call of ``episodes`` greedy episodes (a selector's own count when it has
@@ -54,6 +55,22 @@ class EvalSchedule:
             return ref
         self._take(ref, logger, wall_s)
         return self.poll(None, logger, wall_s)
+
+    def snapshot(self, wall_s: float) -> None:
+        """Keep the evaluator's policy when a ``policy_snapshot_every_s`` mark has passed."""
+        if not self.p.snapshots.due(wall_s):
+            return
+        try:
+            weights, version = ray.get(self.p.learner.get_eval_weights.remote(), timeout=120)
+        except (RayActorError, ray.exceptions.GetTimeoutError):
+            # A learner that Ray is restarting: this mark is skipped, the next one is taken.
+            log.warning("policy snapshot at %.0f s skipped: the learner did not answer", wall_s)
+            self.p.snapshots.skip()
+            return
+        try:
+            self.p.snapshots.keep(weights, version, self.stats.env_steps, wall_s)
+        except DiskWriteError as exc:
+            self.failure = self.failure or exc
 
     def final(self, ref: Any, logger: Any, wall_s: float) -> None:
         """Every run ends with an evaluation: the call in flight is waited for, and when the

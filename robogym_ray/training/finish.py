@@ -75,6 +75,7 @@ def finish(
         lost_transitions=run_stats.transitions_sent
         - (learner_status["total_added"] - p.first_total_added),
         best_snapshot=None if p.selector is None else p.selector.summary(),
+        policy_snapshots=p.snapshots.written,
         server_nodes=p.server_nodes(), logdir=str(p.run_dir),
     )  # fmt: skip
     if failure is not None:

@@ -156,6 +156,7 @@ class TrainingLoop:
             if not self._done(in_flight):
                 pending[self._collect(slot)] = slot
             eval_ref = self.evals.poll(eval_ref, logger, self._wall())
+            self.evals.snapshot(self._wall())
             self._check_disk(logger)
             if logger.due(cfg.log_every_s):  # scalars cost a supervisor round trip
                 logger.write(self._scalars(), self.stats.env_steps)

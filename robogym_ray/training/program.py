@@ -18,7 +18,7 @@ from robogym_ray.robots.emulation import EmulationConfig
 from robogym_ray.training import setup
 from robogym_ray.training.config import TrainConfig
 from robogym_ray.training.presets import TaskPreset
-from robogym_ray.training.selection import SnapshotSelector
+from robogym_ray.training.selection import PolicySnapshots, SnapshotSelector
 from robogym_ray.training.stats import WorkerSlot
 
 
@@ -84,6 +84,7 @@ class Program:
             )  # fmt: skip
         selecting = cfg.select_episodes and self.evaluator is not None
         self.selector = SnapshotSelector(checkpoints) if selecting else None
+        self.snapshots = PolicySnapshots(checkpoints, cfg.policy_snapshot_every_s)
 
     def _env_kwargs(self, index: int | None) -> dict[str, Any]:
         """Sim envs build their robots in their own process (``sim_path="inprocess"``) or lease

@@ -1,4 +1,6 @@
-"""Snapshot selection: keep the policy snapshot that scored best on a fixed set of episodes.
+"""Policy snapshots kept during training: the one that scored best on a fixed set of episodes
+(``SnapshotSelector``), and one every ``policy_snapshot_every_s`` of wall time
+(``PolicySnapshots``, for curves of success against wall time scored after the run).
 
 A greedy policy's success rate moves by a few points from one weights snapshot to the next
 (measured on UR10 positioning: 96.7 % after 108 minutes, 95.0 % twelve minutes later, each over
@@ -24,6 +26,9 @@ from typing import Any
 import numpy as np
 
 from robogym_ray.learner.checkpoint import BEST_POLICY_NAME, write_policy
+
+TIMED_POLICY_NAME = "policy-{minutes:06.2f}min.pt"
+"""A timed snapshot's file, named by its wall-clock mark (the peers' snapshots are named alike)."""
 
 
 def score(result: Mapping[str, float]) -> tuple[float, float]:
@@ -67,3 +72,43 @@ class SnapshotSelector:
 
     def summary(self) -> dict[str, Any]:
         return {**self.record, "snapshots_scored": self.scored}
+
+
+class PolicySnapshots:
+    """The evaluator's policy written at each ``every_s`` mark of wall time.
+
+    A mark is taken at the loop's first pass after it (the loop turns every few hundred ms);
+    the file records the exact wall time, learner steps and env steps. A re-run in the same
+    directory (it resumes from the checkpoint there) numbers its marks on from the last file
+    found, rather than overwrite the first run's.
+    """
+
+    def __init__(self, checkpoint_dir: Path, every_s: float) -> None:
+        self.dir, self.every_s, self.marks = checkpoint_dir, every_s, 0
+        self.written: list[dict[str, Any]] = []
+        found = [float(p.name[len("policy-") : -len("min.pt")])
+                 for p in checkpoint_dir.glob("policy-*min.pt")]  # fmt: skip
+        self.offset_min = max(found, default=0.0)
+
+    def due(self, wall_s: float) -> bool:
+        return self.every_s > 0 and wall_s >= self.every_s * (self.marks + 1)
+
+    def skip(self) -> None:
+        """The next due mark passes without a file (the learner could not be asked)."""
+        self.marks += 1
+
+    def keep(self, weights: Mapping[str, np.ndarray], version: int, env_steps: int,
+             wall_s: float) -> Path:  # fmt: skip
+        """Write the policy of the next due mark (the mark counts as taken either way).
+
+        Raises:
+            DiskWriteError: the file could not be written (nothing partial is left).
+        """
+        self.marks += 1
+        minutes = self.offset_min + self.every_s * self.marks / 60.0
+        path = self.dir / TIMED_POLICY_NAME.format(minutes=minutes)
+        record = {"path": str(path), "wall_min": round(minutes, 2), "wall_s": round(wall_s, 1),
+                  "learner_steps": int(version), "env_steps": int(env_steps)}  # fmt: skip
+        write_policy(path, weights, snapshot=record)
+        self.written.append(record)
+        return path

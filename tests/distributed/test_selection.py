@@ -16,7 +16,7 @@ from robogym_ray.learner.checkpoint import BEST_POLICY_NAME
 from robogym_ray.learner.config import D4PGConfig
 from robogym_ray.learner.service import LearnerService
 from robogym_ray.training.config import TrainConfig
-from robogym_ray.training.selection import SnapshotSelector
+from robogym_ray.training.selection import PolicySnapshots, SnapshotSelector
 
 SMALL = D4PGConfig(policy_hidden=(16, 16), critic_hidden=(16, 16), num_atoms=11)
 
@@ -71,3 +71,26 @@ def test_selection_needs_the_evaluator() -> None:
         TrainConfig(select_episodes=20, evaluator=False)
     with pytest.raises(ConfigError, match="select_episodes"):
         TrainConfig(select_episodes=-1)
+
+
+def test_timed_snapshots_are_kept_at_each_mark_and_a_rerun_numbers_on(tmp_path: Path) -> None:
+    weights, _ = LearnerService(SMALL, 3, 1, seed=0).get_weights()
+    snapshots = PolicySnapshots(tmp_path, every_s=300.0)
+    assert not snapshots.due(299.9) and snapshots.due(300.0)
+    path = snapshots.keep(weights, 40, 1234, wall_s=300.4)
+    assert path == tmp_path / "policy-005.00min.pt" and not snapshots.due(599.0)
+    snapshots.skip()  # the learner did not answer at 10 min: no file, the next mark is 15
+    assert snapshots.keep(weights, 90, 5678, 900.2).name == "policy-015.00min.pt"
+    assert [r["wall_min"] for r in snapshots.written] == [5.0, 15.0]
+    assert snapshots.written[0] == {"path": str(path), "wall_min": 5.0, "wall_s": 300.4,
+                                    "learner_steps": 40, "env_steps": 1234}  # fmt: skip
+    policy, info = load_checkpoint_policy(path)  # what evaluate and export read
+    assert info.obs_dim == 3
+    for name, value in policy.state_dict().items():
+        assert np.array_equal(value.numpy(), weights[name]), name
+    # A re-run in the same directory numbers on instead of overwriting the first run's files.
+    again = PolicySnapshots(tmp_path, every_s=300.0)
+    assert again.keep(weights, 1, 1, 300.0).name == "policy-020.00min.pt"
+    assert not PolicySnapshots(tmp_path, every_s=0.0).due(1e9)
+    with pytest.raises(ConfigError, match="policy_snapshot_every_s"):
+        TrainConfig(policy_snapshot_every_s=-1)

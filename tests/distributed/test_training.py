@@ -77,8 +77,13 @@ def test_navigation_run_completes_with_tensorboard_scalars(tmp_path: Path) -> No
         progress=False,
         log_every_s=1.0,
         revisit_failed=1.0,  # the untrained policy fails: the next start of a worker revisits
+        policy_snapshot_every_s=2.0,
     )
     summary = run_training(cfg)
+    # Timed policy snapshots: one per 2 s mark, where evaluate and peers.py evaluate read them.
+    kept = summary["policy_snapshots"]
+    assert kept and all(Path(k["path"]).exists() for k in kept)
+    assert [k["wall_min"] for k in kept] == [round(2 * i / 60, 2) for i in range(1, len(kept) + 1)]
     assert summary["env_steps"] >= 3000
     assert summary["learner_steps"] > 0 and summary["episodes"] > 0
     # Workers send their batches to the learner themselves: every transition reached replay.

@@ -4,6 +4,11 @@ the same greedy episodes as ``robogym-ray evaluate`` (plumbing, not learning).""
 from __future__ import annotations
 
 import json
+import os
+import signal
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -19,6 +24,8 @@ def test_a_peer_saves_snapshots_by_wall_time_and_each_is_scored(tmp_path: Path, 
     out = tmp_path / algo
     record = peers.train(algo, "navigation", minutes=0.04, seed=0, out=out, save_every_min=0.02)
     assert [s["wall_min"] for s in record["snapshots"]] == [0.02, 0.04]
+    assert record["complete"] is True
+    assert json.loads((out / "run.json").read_text()) == record
     steps = [s["env_steps"] for s in record["snapshots"]]
     assert 0 < steps[0] < steps[1] == record["env_steps"]
     # SB3's off-policy defaults: one gradient update per env step once learning starts (100
@@ -30,3 +37,58 @@ def test_a_peer_saves_snapshots_by_wall_time_and_each_is_scored(tmp_path: Path, 
     for point in curve:
         rates = [point[f"{k}_rate"] for k in ("success", "collision", "timeout", "other")]
         assert point["episodes"] == 2 and sum(rates) == pytest.approx(1.0)
+
+
+def test_a_run_killed_after_a_snapshot_keeps_its_record_and_can_be_evaluated(
+    tmp_path: Path,
+) -> None:
+    """run.json is rewritten at every snapshot: a run cut short (a reboot, SIGKILL) is not lost."""
+    out = tmp_path / "cut"
+    cmd = [sys.executable, "experiments/peers.py", "train", "--algo", "sb3-td3",
+           "--problem", "navigation", "--minutes", "60", "--save-every-min", "0.02",
+           "--out", str(out)]  # fmt: skip
+    repo = Path(__file__).resolve().parents[2]
+    proc = subprocess.Popen(cmd, cwd=repo, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    try:
+        deadline = time.monotonic() + 120
+        while not (out / "run.json").exists():
+            assert proc.poll() is None, proc.stderr.read().decode() if proc.stderr else ""
+            assert time.monotonic() < deadline, "no snapshot within 120 s"
+            time.sleep(0.2)
+    finally:
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait()
+    record = json.loads((out / "run.json").read_text())
+    assert record["complete"] is False and record["minutes"] == 60
+    saved = sorted(p.name for p in (out / "snapshots").glob("*.zip"))
+    assert len(record["snapshots"]) >= 1
+    # Every snapshot the record names is on disk (a later one may be, before its record is).
+    named = [f"policy-{s['wall_min']:06.2f}min.zip" for s in record["snapshots"]]
+    assert set(named) <= set(saved)
+    curve = script("peers").evaluate(out, episodes=1, seed=1000)
+    assert [c["wall_min"] for c in curve] == [s["wall_min"] for s in record["snapshots"]]
+
+
+def test_a_training_runs_timed_snapshots_are_scored_like_a_peers(tmp_path: Path) -> None:
+    """``peers.py evaluate`` on a ``robogym-ray train`` run: its ``policy-MMM.MMmin.pt`` files
+    (what ``--policy-snapshot-every-s`` keeps) on the same episodes, into the same curve."""
+    from robogym_ray.learner.config import D4PGConfig
+    from robogym_ray.learner.service import LearnerService
+    from robogym_ray.training.selection import PolicySnapshots
+    from tests.experiments.conftest import NAVIGATION
+
+    run = tmp_path / "run"
+    (run / "checkpoints").mkdir(parents=True)
+    (run / "config.json").write_text(json.dumps({"train": {"task": NAVIGATION}}))
+    cfg = D4PGConfig(policy_hidden=(16,), critic_hidden=(16,), num_atoms=11)
+    snapshots = PolicySnapshots(run / "checkpoints", every_s=60.0)
+    for minute in (1, 2):
+        weights, _ = LearnerService(cfg, 20, 2, seed=minute).get_weights()
+        snapshots.keep(weights, 10 * minute, 100 * minute, 60.0 * minute + 0.5)
+    curve = script("peers").evaluate(run, episodes=2, seed=1000)
+    assert json.loads((run / "curve.json").read_text()) == curve
+    assert [(c["wall_min"], c["env_steps"], c["episodes"]) for c in curve] == [
+        (1.0, 100, 2), (2.0, 200, 2)]  # fmt: skip
+    for c in curve:
+        assert sum(c[f"{k}_rate"] for k in ("success", "collision", "timeout", "other")) == (
+            pytest.approx(1.0))  # fmt: skip

@@ -1,0 +1,141 @@
+"""RLlib's PPO and SAC as peers (``experiments/peers.py --algo rllib-ppo|rllib-sac``).
+
+RLlib is what a Ray user reaches for, so it runs the way its documentation shows: the new API
+stack's ``PPOConfig()`` / ``SACConfig()`` with their defaults, one env runner per core
+(``num_env_runners = os.cpu_count()``, one env each), the learner in the driver, the env made
+by ``gymnasium.make`` on our Sim id. Nothing about the algorithm is tuned.
+
+``ray[rllib]==2.60.0`` pins ``gymnasium==1.2.2`` while this project's lock has 1.4.0, so RLlib
+gets its own virtual environment (``docs/results-log.md``, "Peers", has the commands); this
+module imports RLlib only inside its functions, and ``peers.py`` imports it only for an
+``rllib-*`` algorithm.
+
+A snapshot is ``Algorithm.save_to_path`` (RLlib's own checkpoint); its evaluation loads only
+the RLModule from it and acts as RLlib's env runner does with ``explore=False``: the inference
+distribution's deterministic action, clipped to [-1, 1] (``normalize_actions``, RLlib's default,
+maps [-1, 1] linearly onto the action bounds and clips, which is what ``run_episodes`` does).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+RLLIB_ALGOS = ("rllib-ppo", "rllib-sac")
+
+
+def _make_env(env_id: str) -> Callable[[dict[str, Any]], Any]:
+    def creator(_config: dict[str, Any]) -> Any:
+        import gymnasium as gym
+
+        import robogym_ray  # noqa: F401 - registers the ids in the env runner's process
+
+        return gym.make(env_id)
+
+    return creator
+
+
+def build(algo: str, env_id: str, seed: int) -> Any:
+    """The algorithm with RLlib's defaults, one env runner per core, on its own local Ray."""
+    from ray.rllib.algorithms.ppo import PPOConfig
+    from ray.rllib.algorithms.sac import SACConfig
+    from ray.tune.registry import register_env
+
+    from robogym_ray.distributed.local_ray import start_local_ray
+
+    cpus = os.cpu_count() or 1
+    start_local_ray(num_cpus=cpus)
+    register_env(env_id, _make_env(env_id))
+    config = {"rllib-ppo": PPOConfig, "rllib-sac": SACConfig}[algo]()
+    config = (
+        config.environment(env_id)
+        .framework("torch")
+        .env_runners(num_env_runners=cpus)
+        .debugging(seed=seed)
+    )
+    return config.build_algo()
+
+
+def train_loop(
+    algo_obj: Any, minutes: float, save_every_min: float, save: Callable[[float, dict], None]
+) -> dict[str, Any]:
+    """``algo.train()`` until ``minutes`` of wall time are spent, saving at each mark: an
+    iteration is RLlib's unit of work, so a snapshot is taken at the first iteration's end past
+    its mark (``saved_at_min`` says when)."""
+    import time
+
+    start = time.perf_counter()
+    marks = [save_every_min * k for k in range(1, int(minutes / save_every_min + 1e-9) + 1)]
+    if not marks or marks[-1] < minutes:
+        marks.append(minutes)
+    result: dict[str, Any] = {}
+    while marks:
+        result = algo_obj.train()
+        elapsed = (time.perf_counter() - start) / 60.0
+        while marks and elapsed >= marks[0]:
+            save(marks.pop(0), counters(result) | {"saved_at_min": round(elapsed, 2)})
+    return counters(result) | {"wall_s": round(time.perf_counter() - start, 1)}
+
+
+def counters(result: dict[str, Any]) -> dict[str, Any]:
+    """Env steps and trained samples from an ``algo.train()`` result (new API stack keys)."""
+    from ray.rllib.core import DEFAULT_MODULE_ID
+    from ray.rllib.utils.metrics import (
+        ENV_RUNNER_RESULTS,
+        LEARNER_RESULTS,
+        NUM_ENV_STEPS_SAMPLED_LIFETIME,
+        NUM_MODULE_STEPS_TRAINED_LIFETIME,
+    )
+
+    learner = result.get(LEARNER_RESULTS, {}).get(DEFAULT_MODULE_ID, {})
+    return {
+        "env_steps": int(result.get(ENV_RUNNER_RESULTS, {}).get(NUM_ENV_STEPS_SAMPLED_LIFETIME, 0)),
+        "samples_trained": int(learner.get(NUM_MODULE_STEPS_TRAINED_LIFETIME, 0)),
+        "iterations": int(result.get("training_iteration", 0)),
+    }
+
+
+def batch_sizes(algo_obj: Any) -> dict[str, Any]:
+    """What turns samples trained into gradient updates: the minibatch (PPO) or train batch."""
+    cfg = algo_obj.config
+    minibatch = cfg.minibatch_size or cfg.train_batch_size_per_learner
+    return {
+        "train_batch_size": cfg.train_batch_size_per_learner,
+        "minibatch_size": minibatch,
+        "num_epochs": cfg.num_epochs,
+        "num_env_runners": cfg.num_env_runners,
+    }
+
+
+def load_policy(snapshot: Path) -> Callable[[np.ndarray], np.ndarray]:
+    """The greedy policy of an RLlib checkpoint, answering in [-1, 1]."""
+    import torch
+    from ray.rllib.core import (
+        COMPONENT_LEARNER,
+        COMPONENT_LEARNER_GROUP,
+        COMPONENT_RL_MODULE,
+        DEFAULT_MODULE_ID,
+    )
+    from ray.rllib.core.columns import Columns
+    from ray.rllib.core.rl_module.rl_module import RLModule
+
+    path = snapshot / COMPONENT_LEARNER_GROUP / COMPONENT_LEARNER / COMPONENT_RL_MODULE
+    module = RLModule.from_checkpoint(path / DEFAULT_MODULE_ID)
+    dist_cls = module.get_inference_action_dist_cls()
+
+    def policy(obs: np.ndarray) -> np.ndarray:
+        with torch.no_grad():
+            batch = {Columns.OBS: torch.as_tensor(obs, dtype=torch.float32)[None]}
+            out = module.forward_inference(batch)
+            if Columns.ACTIONS in out:
+                action = out[Columns.ACTIONS]
+            else:
+                dist = dist_cls.from_logits(out[Columns.ACTION_DIST_INPUTS])
+                action = dist.to_deterministic().sample()
+        return np.clip(action[0].numpy().astype(np.float64), -1.0, 1.0)
+
+    return policy
