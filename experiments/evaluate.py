@@ -6,6 +6,10 @@
     # on an emulated real robot started for the task (real-time pacing, latency, noise)
     python experiments/evaluate.py runs/paper/navigation-average/checkpoints/learner.pt --emulate \
         --out results/nav-emulated
+    # the same robot in simulated time, episodes started and ended as in simulation (what the
+    # results' "emulated robot" column is)
+    python experiments/evaluate.py CHECKPOINT --emulate --simulated-time --variant sim \
+        --episodes 100 --out results/nav-emulated-sim
     # on a robot server that is already running (real robot or `robogym-ray serve ...`)
     python experiments/evaluate.py policy.pt --rs-address 10.0.0.5:50051 --out results/nav-real
 
@@ -38,6 +42,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     parser.add_argument("--serve-seed", type=int, default=0, help="Seed of the emulated robot.")
     parser.add_argument(
+        "--simulated-time",
+        action="store_true",
+        help="--emulate without real-time pacing: the emulated robot's latency and noise, at "
+        "simulation speed.",
+    )
+    parser.add_argument(
         "--serve-arg",
         action="append",
         default=[],
@@ -51,7 +61,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             env_id = cfg.env_id or load_policy(args.policy, cfg.online_weights).info.env_id
             if env_id is None:
                 raise ConfigError("--emulate needs --env-id (the policy does not name its env)")
-            address = stack.enter_context(emulated_server(env_id, args.serve_seed, args.serve_arg))
+            server = emulated_server(
+                env_id, args.serve_seed, args.serve_arg, real_time=not args.simulated_time
+            )
+            address = stack.enter_context(server)
             cfg = replace(cfg, rs_address=address)
         result = evaluate(args.policy, cfg)
     report(result, cfg.out)

@@ -15,6 +15,9 @@
   evaluation episode as a path over the lab map coloured by terminal status, and beside it the
   failed episodes one by one (or ``--mir-seeds``) with their cubes, the 0.40 m no-go circle
   around each cube centre, the start, the target and where the episode ended.
+* ``curves.png`` (``--curves``, ``curve.json`` files of ``experiments/peers.py evaluate``):
+  success of the same 100 greedy episodes against wall time for each saved policy of several
+  runs; the runs of one method (labels ``METHOD seed N``) share a colour and are drawn thin.
 """
 
 from __future__ import annotations
@@ -153,6 +156,44 @@ def plot_time_to_success(
     return out, reached
 
 
+def first_snapshot(curve: Sequence[Mapping[str, float]], rate: float) -> float | None:
+    """Wall minutes of a curve's first snapshot whose success reached ``rate``, or None."""
+    return next((float(c["wall_min"]) for c in curve if c["success_rate"] >= rate), None)
+
+
+def plot_curves(
+    curves: Mapping[str, str | Path], out: str | Path, title: str
+) -> tuple[Path, dict[str, dict[str, float | None]]]:
+    """Each ``curve.json``'s success against wall minutes; returns the figure and each run's
+    first snapshot at 90 % and at 95 %."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(7, 4))
+    colours: dict[str, Any] = {}
+    reached: dict[str, dict[str, float | None]] = {}
+    for label, path in curves.items():
+        curve = json.loads(Path(path).read_text())
+        method, seeded = label.split(" seed")[0], " seed" in label
+        kwargs = {"color": colours[method]} if method in colours else {}
+        (line,) = ax.plot([c["wall_min"] for c in curve], [c["success_rate"] for c in curve],
+                          marker=".", lw=0.9 if seeded else 1.8, **kwargs,
+                          label=label if method not in colours or not seeded else None)  # fmt: skip
+        if method not in colours:
+            colours[method] = line.get_color()
+            if seeded:
+                line.set_label(method)
+        reached[label] = {f"{r:.0%}": first_snapshot(curve, r) for r in (0.90, 0.95)}
+    ax.axhline(0.95, color="gray", lw=0.8)
+    ax.set(xlabel="wall minutes", ylabel="success, 100 greedy episodes (seeds 1000-1099)",
+           ylim=(-0.02, 1.02), title=title)  # fmt: skip
+    ax.grid(alpha=0.3)
+    ax.legend(loc="lower right", fontsize=8)
+    fig.tight_layout()
+    out = Path(out)
+    fig.savefig(out, dpi=120)
+    plt.close(fig)
+    return out, reached
+
+
 def plot_targets(evaluation_json: str | Path, out: str | Path) -> Path:
     """UR targets of a final evaluation coloured by final status (3D and top view)."""
     plt = _pyplot()
@@ -280,6 +321,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         help="summary.json files (LABEL=path): evaluator success against wall time.",
     )  # fmt: skip
     parser.add_argument("--rate", type=float, default=0.95, help="--time-to's target rate.")
+    parser.add_argument(
+        "--curves", nargs="+", metavar="LABEL=CURVE",
+        help="curve.json files of experiments/peers.py evaluate (LABEL=path; 'METHOD seed N' "
+        "labels of one METHOD share a colour): success against wall time.",
+    )  # fmt: skip
+    parser.add_argument("--title", default="", help="--curves' figure title.")
     parser.add_argument("--out", default="figures", help="Output directory (default: figures).")
     args = parser.parse_args(argv)
     out = Path(args.out)
@@ -304,10 +351,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         figure, reached = plot_time_to_success(summaries, out / "time_to_success.png", args.rate)
         written.append(figure)
         print(json.dumps({"minutes_to_rate": reached}))
+    if args.curves:
+        curves = dict(item.split("=", 1) for item in args.curves)
+        figure, first = plot_curves(curves, out / "curves.png", args.title)
+        written.append(figure)
+        print(json.dumps({"first_snapshot_at": first}))
     if not written:
-        parser.error(
-            "nothing to plot: give --navigation, --positioning, --ur-eval, --mir-eval or --time-to"
-        )
+        parser.error("nothing to plot: give --navigation, --positioning, --ur-eval, --mir-eval, "
+                     "--time-to or --curves")  # fmt: skip
     print(json.dumps([str(p) for p in written]))
     return 0
 

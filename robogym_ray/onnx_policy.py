@@ -15,7 +15,7 @@ onnxruntime, and onnx for torch's exporter).
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 import numpy as np
 
@@ -65,7 +65,7 @@ def _size(shape: list[Any], path: Path) -> int:
     return int(shape[-1])
 
 
-def write_onnx(module: Any, obs_dim: int, path: str | Path) -> None:
+def write_onnx(module: Any, obs_dim: int, path: str | Path | BinaryIO) -> None:
     """Write a torch policy (``[batch, obs_dim] -> [batch, act_dim]``) as ONNX, any batch size.
 
     TorchScript-based export (``dynamo=False``): exact for a fixed MLP; it needs the ``onnx``
@@ -81,7 +81,8 @@ def write_onnx(module: Any, obs_dim: int, path: str | Path) -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the TorchScript exporter's deprecation notice
         torch.onnx.export(
-            module, (torch.zeros(1, obs_dim),), str(path), input_names=["obs"],
+            module, (torch.zeros(1, obs_dim),), path if hasattr(path, "write") else str(path),
+            input_names=["obs"],
             output_names=["actions"], dynamic_axes={"obs": {0: "batch"}, "actions": {0: "batch"}},
             opset_version=OPSET, **which,
         )  # fmt: skip

@@ -107,3 +107,51 @@ def test_a_run_with_a_policy_average_ships_the_average(tmp_path, capsys) -> None
         torch.testing.assert_close(module(obs), expected, rtol=0, atol=1e-6)
     with pytest.raises(ConfigError, match="exported policy"):
         load_policy(tmp_path / "p0.pt", online=True)
+
+
+def probe_export_on_a_full_disk(checkpoint: str, disk: str) -> None:
+    """Runs on a full tmpfs (``tests/full_disk.py``): export a policy and an ONNX onto it."""
+    from pathlib import Path
+
+    from robogym_ray.errors import DiskWriteError
+    from tests.full_disk import fill, report, tmp_files
+
+    disk_dir = Path(disk)
+    fill(disk_dir)
+    errors = {}
+    for name in ("policy.pt", "policy.onnx"):
+        try:
+            export_policy(checkpoint, disk_dir / name, env_id=POSITIONING)
+            errors[name] = None
+        except DiskWriteError as exc:
+            errors[name] = {"type": type(exc).__name__, "path": exc.path, "what": exc.what}
+        except ImportError:  # the onnx extra is not installed here
+            errors[name] = "no onnx"
+    files = sorted(p.name for p in disk_dir.iterdir())
+    report({"errors": errors, "files": files, "tmp": tmp_files(disk_dir)})
+
+
+def test_export_on_a_full_disk_leaves_no_partial_file(positioning_checkpoint, tmp_path) -> None:
+    from tests.full_disk import run_on_tmpfs
+
+    path, _ = positioning_checkpoint
+    disk = tmp_path / "disk"
+    out = run_on_tmpfs(disk, "1m", f"{__name__}:probe_export_on_a_full_disk", str(path), str(disk))
+    assert out["errors"]["policy.pt"] == {"type": "DiskFullError", "what": "exported policy",
+                                          "path": str(disk / "policy.pt")}  # fmt: skip
+    if out["errors"]["policy.onnx"] != "no onnx":
+        assert out["errors"]["policy.onnx"]["path"] == str(disk / "policy.onnx")
+    assert out["files"] == ["filler"] and out["tmp"] == []
+
+
+def test_a_sidecar_that_cannot_be_written_takes_the_export_with_it(
+    positioning_checkpoint, tmp_path, capfd
+) -> None:
+    """Without its sidecar an exported file would read as a learner checkpoint."""
+    path, _ = positioning_checkpoint
+    out = tmp_path / "export" / "policy.pt"
+    sidecar_path(out).mkdir(parents=True)  # where the sidecar goes, a directory: the rename fails
+    assert cli_main(["export", str(path), str(out), "--env-id", POSITIONING]) != 0
+    err = capfd.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "cannot write exported policy's sidecar" in err[0], err
+    assert sorted(p.name for p in out.parent.iterdir()) == ["policy.pt.json"]  # the directory

@@ -15,11 +15,14 @@ import pytest
 
 from tests.experiments.test_scripts import script
 
-pytest.importorskip("stable_baselines3")
+
+def needs_sb3() -> None:
+    pytest.importorskip("stable_baselines3")  # the [peers] extra; RLlib's environment lacks it
 
 
 @pytest.mark.parametrize("algo", ["sb3-td3", "sb3-sac"])
 def test_a_peer_saves_snapshots_by_wall_time_and_each_is_scored(tmp_path: Path, algo: str) -> None:
+    needs_sb3()
     peers = script("peers")
     out = tmp_path / algo
     record = peers.train(algo, "navigation", minutes=0.04, seed=0, out=out, save_every_min=0.02)
@@ -43,6 +46,7 @@ def test_a_run_killed_after_a_snapshot_keeps_its_record_and_can_be_evaluated(
     tmp_path: Path,
 ) -> None:
     """run.json is rewritten at every snapshot: a run cut short (a reboot, SIGKILL) is not lost."""
+    needs_sb3()
     out = tmp_path / "cut"
     cmd = [sys.executable, "experiments/peers.py", "train", "--algo", "sb3-td3",
            "--problem", "navigation", "--minutes", "60", "--save-every-min", "0.02",
@@ -92,3 +96,27 @@ def test_a_training_runs_timed_snapshots_are_scored_like_a_peers(tmp_path: Path)
     for c in curve:
         assert sum(c[f"{k}_rate"] for k in ("success", "collision", "timeout", "other")) == (
             pytest.approx(1.0))  # fmt: skip
+
+
+@pytest.mark.parametrize("algo", ["rllib-ppo", "rllib-sac"])
+def test_an_rllib_peer_trains_by_wall_time_and_its_checkpoints_are_scored(
+    tmp_path: Path, algo: str
+) -> None:
+    """RLlib lives in its own virtual environment (requirements/peers-rllib.txt): this test runs
+    there (``pip install pytest`` in it) and is skipped where RLlib is not installed."""
+    pytest.importorskip("ray.rllib.algorithms.ppo")
+    out = tmp_path / algo
+    cmd = [sys.executable, "experiments/peers.py", "train", "--algo", algo, "--problem",
+           "navigation", "--minutes", "0.2", "--save-every-min", "0.1",
+           "--out", str(out)]  # fmt: skip
+    repo = Path(__file__).resolve().parents[2]
+    done = subprocess.run(cmd, cwd=repo, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    record = json.loads((out / "run.json").read_text())
+    assert record["complete"] is True and record["num_env_runners"] == (os.cpu_count() or 1)
+    assert [s["wall_min"] for s in record["snapshots"]] == [0.1, 0.2]
+    # A snapshot is taken at the end of the first iteration past its mark.
+    assert all(s["saved_at_min"] >= s["wall_min"] for s in record["snapshots"])
+    assert 0 < record["snapshots"][0]["env_steps"] <= record["env_steps"]
+    curve = script("peers").evaluate(out, episodes=1, seed=1000)
+    assert [c["wall_min"] for c in curve] == [0.1, 0.2]

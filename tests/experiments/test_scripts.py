@@ -112,6 +112,19 @@ def test_evaluate_script_on_an_emulated_robot(tmp_path: Path, capsys) -> None:
     assert data["env_id"].endswith("Rob-v0") and data["rs_address"].startswith("127.0.0.1:")
 
 
+def test_evaluate_script_on_an_emulated_robot_in_simulated_time(tmp_path: Path) -> None:
+    """The results' "emulated robot" column: the emulated server at simulation speed, episodes
+    started and ended as in simulation (--variant sim)."""
+    save_learner(tmp_path / "learner.pt", 15, 6)
+    argv = [str(tmp_path / "learner.pt"), "--env-id", POSITIONING, "--emulate", "--simulated-time",
+            "--variant", "sim", "--episodes", "2", "--max-steps", "5",
+            "--out", str(tmp_path / "ev")]  # fmt: skip
+    assert script("evaluate").main(argv) == 0
+    data = json.loads((tmp_path / "ev" / "evaluation.json").read_text())
+    assert data["env_id"].endswith("Sim-v0") and data["rs_address"].startswith("127.0.0.1:")
+    assert data["n_episodes"] == 2
+
+
 def test_figures_from_tensorboard_and_an_evaluation(tmp_path: Path) -> None:
     pytest.importorskip("matplotlib")
     from torch.utils.tensorboard import SummaryWriter
@@ -161,3 +174,22 @@ def test_time_to_success_counts_only_full_evaluation_windows(tmp_path: Path) -> 
         round(figures.first_reach(json.loads(old.read_text())["eval_history"], 0.95) / 60, 1)
         == 79.5
     )
+
+
+def test_curves_figure_marks_each_runs_first_snapshot_at_90_and_95(tmp_path: Path) -> None:
+    pytest.importorskip("matplotlib")
+    figures = script("figures")
+    runs = {"D4PG seed 0": [0.5, 0.92, 0.96], "D4PG seed 1": [0.3, 0.6, 0.91], "TD3": [0.95, 0.9]}
+    args = []
+    for label, rates in runs.items():
+        path = tmp_path / f"{label}.json"
+        path.write_text(json.dumps([{"wall_min": 5.0 * (i + 1), "success_rate": r}
+                                    for i, r in enumerate(rates)]))  # fmt: skip
+        args.append(f"{label}={path}")
+    out = tmp_path / "figs"
+    assert figures.main(["--curves", *args, "--title", "t", "--out", str(out)]) == 0
+    assert (out / "curves.png").stat().st_size > 10_000
+    _, first = figures.plot_curves(dict(a.split("=", 1) for a in args), out / "c.png", "t")
+    assert first == {"D4PG seed 0": {"90%": 10.0, "95%": 15.0},
+                     "D4PG seed 1": {"90%": 15.0, "95%": None},
+                     "TD3": {"90%": 5.0, "95%": 5.0}}  # fmt: skip
