@@ -55,6 +55,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         "e.g. --serve-arg=--emu-latency-ticks=2.",
     )
     args = parser.parse_args(argv)
+    if args.simulated_time and not args.emulate:
+        parser.error("--simulated-time is a setting of --emulate's robot; add --emulate")
     cfg = config_from_args(EvaluationConfig, args)
     with contextlib.ExitStack() as stack:
         if args.emulate:

@@ -156,9 +156,15 @@ def plot_time_to_success(
     return out, reached
 
 
+def saved_at(point: Mapping[str, float]) -> float:
+    """When a snapshot's weights were taken (wall minutes): its mark, or later when the
+    program could save only at the end of a unit of work (an RLlib iteration)."""
+    return float(point.get("saved_at_min", point["wall_min"]))
+
+
 def first_snapshot(curve: Sequence[Mapping[str, float]], rate: float) -> float | None:
     """Wall minutes of a curve's first snapshot whose success reached ``rate``, or None."""
-    return next((float(c["wall_min"]) for c in curve if c["success_rate"] >= rate), None)
+    return next((saved_at(c) for c in curve if c["success_rate"] >= rate), None)
 
 
 def plot_curves(
@@ -174,7 +180,7 @@ def plot_curves(
         curve = json.loads(Path(path).read_text())
         method, seeded = label.split(" seed")[0], " seed" in label
         kwargs = {"color": colours[method]} if method in colours else {}
-        (line,) = ax.plot([c["wall_min"] for c in curve], [c["success_rate"] for c in curve],
+        (line,) = ax.plot([saved_at(c) for c in curve], [c["success_rate"] for c in curve],
                           marker=".", lw=0.9 if seeded else 1.8, **kwargs,
                           label=label if method not in colours or not seeded else None)  # fmt: skip
         if method not in colours:
@@ -346,6 +352,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         written.append(plot_targets(args.ur_eval, out / "ur_targets.png"))
     if args.mir_eval:
         written.append(plot_paths(args.mir_eval, out / "mir_paths.png", args.mir_seeds))
+    for item in [*(args.time_to or []), *(args.curves or [])]:
+        if "=" not in item:
+            parser.error(f"{item!r}: expected LABEL=PATH")
     if args.time_to:
         summaries = dict(item.split("=", 1) for item in args.time_to)
         figure, reached = plot_time_to_success(summaries, out / "time_to_success.png", args.rate)

@@ -42,7 +42,6 @@ PROBLEMS = {
 }
 SB3_ALGOS = ("sb3-td3", "sb3-sac")
 ALGOS = (*SB3_ALGOS, "rllib-ppo", "rllib-sac")
-SNAPSHOT = "policy-{minutes:06.2f}min"  # + ".zip" for SB3; RLlib's checkpoint is a folder
 
 
 def _rllib() -> Any:
@@ -58,7 +57,10 @@ def _rllib() -> Any:
 
 
 def snapshot_path(run_dir: Path, algo: str, minutes: float) -> Path:
-    name = SNAPSHOT.format(minutes=minutes)
+    """Named as a training run's timed snapshots are, + ".zip" (SB3) or a folder (RLlib)."""
+    from robogym_ray.training.selection import TIMED_NAME
+
+    name = TIMED_NAME.format(minutes=minutes)
     return run_dir / "snapshots" / (f"{name}.zip" if algo in SB3_ALGOS else name)
 
 
@@ -83,8 +85,12 @@ class Run:
     """What ``run.json`` says of a run, rewritten at every snapshot: a run cut short (a reboot, a
     kill) keeps the record of what it saved, and its snapshots can still be evaluated."""
 
-    def __init__(self, algo: str, problem: str, minutes: float, seed: int, out: Path) -> None:
+    def __init__(self, algo: str, problem: str, minutes: float, seed: int, out: Path,
+                 save_every_min: float) -> None:  # fmt: skip
+        if save_every_min < 1 / 60:  # names have 0.01-minute resolution
+            raise SystemExit(f"--save-every-min {save_every_min:g}: at least 1/60 (one second)")
         self.out, self.start, self.saved = out, time.perf_counter(), []
+        self.minutes, self.every_min, self.taken = minutes, save_every_min, 0
         self.head = {
             "algo": algo, "problem": problem, "env_id": PROBLEMS[problem], "seed": seed,
             "minutes": minutes, "load_average_before": list(os.getloadavg()),
@@ -92,6 +98,26 @@ class Run:
             "command": f"python experiments/peers.py train --algo {algo} --problem {problem} "
                        f"--minutes {minutes:g} --seed {seed}",
         }  # fmt: skip
+
+    def elapsed_min(self) -> float:
+        return (time.perf_counter() - self.start) / 60.0
+
+    def due(self) -> float | None:
+        """The mark (minutes) to save now: the budget's end, or the latest mark passed and not
+        yet saved (a long iteration that passes two marks saves the later one only: a name
+        never holds later weights than its time), else None."""
+        elapsed = self.elapsed_min()
+        if elapsed >= self.minutes:
+            return self.minutes
+        mark = int(elapsed // self.every_min)
+        if mark <= self.taken:
+            return None
+        self.taken = mark
+        return mark * self.every_min
+
+    def saved_mark(self, mark: float, env_steps: int) -> None:
+        self.saved.append({"wall_min": round(mark, 2), "env_steps": int(env_steps),
+                           "saved_at_min": round(self.elapsed_min(), 2)})  # fmt: skip
 
     def write(self, counters: dict[str, Any], complete: bool) -> dict[str, Any]:
         """``counters``: env_steps, updates_per_env_step and what explains them."""
@@ -132,24 +158,18 @@ def _train_sb3(algo: str, problem: str, minutes: float, seed: int, out: Path,
         return {"env_steps": steps, "gradient_updates": updates,
                 "updates_per_env_step": round(updates / max(steps, 1), 3)}  # fmt: skip
 
-    run = Run(algo, problem, minutes, seed, out)
+    run = Run(algo, problem, minutes, seed, out, save_every_min)
 
     class WallClock(BaseCallback):
         """Saves the policy at each ``save_every_min`` of wall time; stops at the budget."""
 
-        def save(self, minutes: float) -> None:
-            self.model.save(snapshot_path(out, algo, minutes))
-            run.saved.append({"wall_min": round(minutes, 2), "env_steps": self.num_timesteps})
-            run.write(counters(), complete=False)
-
         def _on_step(self) -> bool:
-            elapsed = (time.perf_counter() - run.start) / 60.0
-            if elapsed >= save_every_min * (len(run.saved) + 1) and elapsed < minutes:
-                self.save(save_every_min * (len(run.saved) + 1))
-            if elapsed >= minutes:
-                self.save(minutes)
-                return False
-            return True
+            mark = run.due()
+            if mark is not None:
+                self.model.save(snapshot_path(out, algo, mark))
+                run.saved_mark(mark, self.num_timesteps)
+                run.write(counters(), complete=False)
+            return mark != minutes
 
     try:
         model.learn(total_timesteps=10**10, callback=WallClock())
@@ -163,7 +183,7 @@ def _train_rllib(algo: str, problem: str, minutes: float, seed: int, out: Path,
     rllib = _rllib()
     algo_obj = rllib.build(algo, PROBLEMS[problem], seed)
     sizes = rllib.batch_sizes(algo_obj)
-    run = Run(algo, problem, minutes, seed, out)
+    run = Run(algo, problem, minutes, seed, out, save_every_min)
 
     def counters(c: dict[str, Any]) -> dict[str, Any]:
         # Samples trained count every minibatch of every epoch: / minibatch = gradient updates.
@@ -171,17 +191,20 @@ def _train_rllib(algo: str, problem: str, minutes: float, seed: int, out: Path,
         return {**c, **sizes, "gradient_updates": int(updates),
                 "updates_per_env_step": round(updates / max(c["env_steps"], 1), 3)}  # fmt: skip
 
-    def save(mark: float, c: dict[str, Any]) -> None:
-        algo_obj.save_to_path(snapshot_path(out, algo, mark).resolve())
-        run.saved.append({"wall_min": round(mark, 2), "env_steps": c["env_steps"],
-                          "saved_at_min": c["saved_at_min"]})  # fmt: skip
-        run.write(counters(c), complete=False)
-
     try:
-        final = rllib.train_loop(algo_obj, minutes, save_every_min, save)
+        while True:
+            # An iteration is RLlib's unit of work: a snapshot comes at the first iteration's
+            # end past its mark ("saved_at_min" says when; curves are drawn at that time).
+            c = rllib.counters(algo_obj.train())
+            mark = run.due()
+            if mark is not None:
+                algo_obj.save_to_path(snapshot_path(out, algo, mark).resolve())
+                run.saved_mark(mark, c["env_steps"])
+                run.write(counters(c), complete=mark == minutes)
+            if mark == minutes:
+                return run.write(counters(c), complete=True)
     finally:
         algo_obj.stop()
-    return run.write(counters(final), complete=True)
 
 
 def evaluate(run_dir: Path, episodes: int = 100, seed: int = 1000) -> list[dict[str, Any]]:
@@ -237,8 +260,10 @@ def _snapshots(run_dir: Path) -> tuple[str, list[tuple[dict[str, Any], Loader]]]
         return record["env_id"], [(snap, load(snap)) for snap in record["snapshots"]]
     from robogym_ray.export import env_id_of_run, load_policy
     from robogym_ray.learner.checkpoint import read
+    from robogym_ray.training.selection import mark_minutes
 
-    paths = sorted((run_dir / "checkpoints").glob("policy-*min.pt"))
+    named = [(mark_minutes(p.name), p) for p in (run_dir / "checkpoints").glob("policy-*min.pt")]
+    paths = [p for m, p in sorted((m, p) for m, p in named if m is not None)]  # by time
     if not paths:
         raise SystemExit(
             f"{run_dir}: no run.json (a peer's run) and no checkpoints/policy-*min.pt (a "
@@ -249,7 +274,9 @@ def _snapshots(run_dir: Path) -> tuple[str, list[tuple[dict[str, Any], Loader]]]
         raise SystemExit(f"{run_dir}: no config.json with the run's task")
     snaps = []
     for path in paths:
-        snap = {k: v for k, v in read(path)["snapshot"].items() if k != "path"}
+        if "snapshot" not in (state := read(path)):
+            raise SystemExit(f"{path}: not a timed snapshot (no snapshot record in it)")
+        snap = {k: v for k, v in state["snapshot"].items() if k != "path"}
         snaps.append((snap, lambda env, path=path: load_policy(path)))
     return env_id, snaps
 

@@ -14,6 +14,9 @@ A snapshot is ``Algorithm.save_to_path`` (RLlib's own checkpoint); its evaluatio
 the RLModule from it and acts as RLlib's env runner does with ``explore=False``: the inference
 distribution's deterministic action, clipped to [-1, 1] (``normalize_actions``, RLlib's default,
 maps [-1, 1] linearly onto the action bounds and clips, which is what ``run_episodes`` does).
+For SAC that is the squashed Gaussian's pre-tanh mean, clipped, not tanh of it: RLlib 2.60's
+``TorchSquashedGaussian.to_deterministic`` returns ``loc`` unsquashed, and its env runner's
+greedy episodes act with that, so the evaluation does too.
 """
 
 from __future__ import annotations
@@ -58,27 +61,6 @@ def build(algo: str, env_id: str, seed: int) -> Any:
         .debugging(seed=seed)
     )
     return config.build_algo()
-
-
-def train_loop(
-    algo_obj: Any, minutes: float, save_every_min: float, save: Callable[[float, dict], None]
-) -> dict[str, Any]:
-    """``algo.train()`` until ``minutes`` of wall time are spent, saving at each mark: an
-    iteration is RLlib's unit of work, so a snapshot is taken at the first iteration's end past
-    its mark (``saved_at_min`` says when)."""
-    import time
-
-    start = time.perf_counter()
-    marks = [save_every_min * k for k in range(1, int(minutes / save_every_min + 1e-9) + 1)]
-    if not marks or marks[-1] < minutes:
-        marks.append(minutes)
-    result: dict[str, Any] = {}
-    while marks:
-        result = algo_obj.train()
-        elapsed = (time.perf_counter() - start) / 60.0
-        while marks and elapsed >= marks[0]:
-            save(marks.pop(0), counters(result) | {"saved_at_min": round(elapsed, 2)})
-    return counters(result) | {"wall_s": round(time.perf_counter() - start, 1)}
 
 
 def counters(result: dict[str, Any]) -> dict[str, Any]:

@@ -27,8 +27,8 @@ import torch
 from torch import nn
 
 from robogym_ray.config import check_dir_path, check_fields, quote, read_json
-from robogym_ray.errors import ConfigError, DiskWriteError
-from robogym_ray.learner.checkpoint import policy_weights, read, write_bytes
+from robogym_ray.errors import ConfigError
+from robogym_ray.learner.checkpoint import policy_weights, read, staged_write, write_bytes
 from robogym_ray.text import clip_text
 
 FORMAT = "robogym-ray-policy/torchscript-v1"
@@ -151,9 +151,9 @@ def export_policy(
     low, high = action_bounds(env_id) if env_id else (None, None)
     info = PolicyInfo(**{**asdict(info), "env_id": env_id, "action_low": low, "action_high": high})
     out = Path(out)
-    # Serialized in memory, then written like a checkpoint (temporary name, rename): a full
-    # disk leaves no half-written OUT, and an OUT without its sidecar would read as a
-    # learner checkpoint, so a sidecar that cannot be written takes OUT with it.
+    # Serialized in memory, written beside OUT and renamed into place only once its sidecar is
+    # written: a full disk leaves no half-written file, and a failed re-export leaves the
+    # previous OUT as it was (an OUT without its sidecar would read as a learner checkpoint).
     buffer = io.BytesIO()
     if out.suffix == ".onnx":  # for a robot PC with onnxruntime only
         from robogym_ray.onnx_policy import write_onnx
@@ -163,13 +163,9 @@ def export_policy(
     else:
         # Tracing is exact here: the policy is a fixed MLP with no data-dependent control flow.
         torch.jit.save(torch.jit.trace(policy, torch.zeros(1, info.obs_dim)), buffer)
-    write_bytes(out, buffer.getbuffer(), "exported policy")
-    try:
+    with staged_write(out, buffer.getbuffer(), "exported policy"):
         sidecar = json.dumps(asdict(info), indent=2).encode()
         write_bytes(sidecar_path(out), sidecar, "exported policy's sidecar")
-    except DiskWriteError:
-        out.unlink(missing_ok=True)
-        raise
     return info
 
 

@@ -65,8 +65,9 @@ def _size(shape: list[Any], path: Path) -> int:
     return int(shape[-1])
 
 
-def write_onnx(module: Any, obs_dim: int, path: str | Path | BinaryIO) -> None:
-    """Write a torch policy (``[batch, obs_dim] -> [batch, act_dim]``) as ONNX, any batch size.
+def write_onnx(module: Any, obs_dim: int, dest: str | Path | BinaryIO) -> None:
+    """Write a torch policy (``[batch, obs_dim] -> [batch, act_dim]``) as ONNX, any batch size,
+    to a file name or a binary stream (``export`` writes it to memory first).
 
     TorchScript-based export (``dynamo=False``): exact for a fixed MLP; it needs the ``onnx``
     package (the ``onnx`` extra), not ``onnxscript``.
@@ -81,7 +82,7 @@ def write_onnx(module: Any, obs_dim: int, path: str | Path | BinaryIO) -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the TorchScript exporter's deprecation notice
         torch.onnx.export(
-            module, (torch.zeros(1, obs_dim),), path if hasattr(path, "write") else str(path),
+            module, (torch.zeros(1, obs_dim),), dest if hasattr(dest, "write") else str(dest),
             input_names=["obs"],
             output_names=["actions"], dynamic_axes={"obs": {0: "batch"}, "actions": {0: "batch"}},
             opset_version=OPSET, **which,

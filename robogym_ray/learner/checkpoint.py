@@ -66,12 +66,22 @@ def write_bytes(path: str | os.PathLike, data: bytes | memoryview, what: str) ->
     On any failure the temporary file is removed and ``path`` is untouched; an OSError (a full
     disk) becomes a ``DiskWriteError`` naming ``what`` and ``path``.
     """
-    path = Path(path)
-    with _replacing(path, what) as tmp, open(tmp, "wb") as f:
-        f.write(data)
-        f.flush()
-        os.fsync(f.fileno())  # a write error that shows only on flush surfaces before the rename
-    return path
+    with staged_write(path, data, what):
+        pass
+    return Path(path)
+
+
+@contextmanager
+def staged_write(path: str | os.PathLike, data: bytes | memoryview, what: str) -> Iterator[None]:
+    """``write_bytes``, with the rename into place held until the block has run: a file that
+    must not appear without a companion (an exported policy and its sidecar) writes that
+    companion in the block; if the block fails, ``path`` is untouched."""
+    with _replacing(Path(path), what) as tmp:
+        with open(tmp, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())  # a write error that shows only on flush: before the rename
+        yield
 
 
 def copy_file(source: str | os.PathLike, path: str | os.PathLike, what: str) -> Path:

@@ -177,7 +177,11 @@ class TrainConfig:
             (self.real_robot_wait_s >= 0, "real_robot_wait_s", ">= 0"),
             (self.replay_snapshot_every_s >= 0, "replay_snapshot_every_s", ">= 0"),
             (self.video_interval_s >= 0, "video_interval_s", ">= 0"),
-            (self.policy_snapshot_every_s >= 0, "policy_snapshot_every_s", ">= 0"),
+            (
+                self.policy_snapshot_every_s == 0 or self.policy_snapshot_every_s >= 1,
+                "policy_snapshot_every_s",
+                "0 or >= 1 (files are named to 0.01 min)",
+            ),
             (self.evaluator or not self.select_episodes, "select_episodes", "0 without evaluator"),
             (self.weight_sync_steps >= 1, "weight_sync_steps", ">= 1"),
             (self.sigma_min >= 0, "sigma_min", ">= 0"),

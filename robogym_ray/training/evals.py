@@ -29,6 +29,8 @@ class EvalSchedule:
         self.next_at = 0.0
         self.failure: DiskWriteError | None = None
         """A policy file could not be written (a full disk): the loop ends the run on it."""
+        self.snapshot_ask: tuple[Any, int, float] | None = None
+        """A timed snapshot's weights asked of the learner: (ref, mark, wall s when asked)."""
 
     def start(self, episodes: int = 1) -> Any:
         """Start a call of ``episodes`` greedy episodes (a selector's own count when it has
@@ -56,21 +58,33 @@ class EvalSchedule:
         self._take(ref, logger, wall_s)
         return self.poll(None, logger, wall_s)
 
-    def snapshot(self, wall_s: float) -> None:
-        """Keep the evaluator's policy when a ``policy_snapshot_every_s`` mark has passed."""
-        if not self.p.snapshots.due(wall_s):
-            return
-        try:
-            weights, version = ray.get(self.p.learner.get_eval_weights.remote(), timeout=120)
-        except (RayActorError, ray.exceptions.GetTimeoutError):
-            # A learner that Ray is restarting: this mark is skipped, the next one is taken.
-            log.warning("policy snapshot at %.0f s skipped: the learner did not answer", wall_s)
-            self.p.snapshots.skip()
-            return
-        try:
-            self.p.snapshots.keep(weights, version, self.stats.env_steps, wall_s)
-        except DiskWriteError as exc:
-            self.failure = self.failure or exc
+    def snapshot(self, wall_s: float, final: bool = False) -> None:
+        """Keep the evaluator's policy at each passed ``policy_snapshot_every_s`` mark: asked
+        for without waiting (the learner may be writing a replay snapshot, on the same 300 s
+        clock), written when it answers; ``final`` waits, so the run's last mark is kept."""
+        snapshots = self.p.snapshots
+        while True:
+            if self.snapshot_ask is None:
+                mark = snapshots.due(wall_s)
+                if mark is None:
+                    return
+                self.snapshot_ask = (self.p.learner.get_eval_weights.remote(), mark, wall_s)
+            ref, mark, asked_s = self.snapshot_ask
+            if not final and not ray.wait([ref], timeout=0)[0]:
+                return
+            self.snapshot_ask = None
+            try:
+                weights, version = ray.get(ref, timeout=120)
+            except (RayActorError, ray.exceptions.GetTimeoutError):
+                # A learner that Ray is restarting: this mark is lost, the next one is taken.
+                log.warning("policy snapshot at %.0f s lost: the learner did not answer", asked_s)
+                snapshots.skip(mark)
+                continue
+            try:
+                snapshots.keep(mark, weights, version, self.stats.env_steps, asked_s)
+            except DiskWriteError as exc:
+                self.failure = self.failure or exc
+                return
 
     def final(self, ref: Any, logger: Any, wall_s: float) -> None:
         """Every run ends with an evaluation: the call in flight is waited for, and when the

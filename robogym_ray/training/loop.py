@@ -161,6 +161,7 @@ class TrainingLoop:
             if logger.due(cfg.log_every_s):  # scalars cost a supervisor round trip
                 logger.write(self._scalars(), self.stats.env_steps)
         self._drain_learner(learner_calls, block=True, all_=True)
+        self.evals.snapshot(self._wall(), final=True)  # the mark the run ended on
         if not self._check_disk(logger):  # a full disk's run reports that, not a policy
             self.evals.final(eval_ref, logger, self._wall())  # the final policy, evaluated
             self._check_disk(logger)

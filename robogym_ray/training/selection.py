@@ -27,8 +27,9 @@ import numpy as np
 
 from robogym_ray.learner.checkpoint import BEST_POLICY_NAME, write_policy
 
-TIMED_POLICY_NAME = "policy-{minutes:06.2f}min.pt"
-"""A timed snapshot's file, named by its wall-clock mark (the peers' snapshots are named alike)."""
+TIMED_NAME = "policy-{minutes:06.2f}min"
+"""A timed snapshot's name, by its wall-clock mark, + ".pt" (the peers' snapshots: + ".zip", or
+RLlib's checkpoint folder). 0.01-minute resolution: marks are at least a second apart."""
 
 
 def score(result: Mapping[str, float]) -> tuple[float, float]:
@@ -77,38 +78,55 @@ class SnapshotSelector:
 class PolicySnapshots:
     """The evaluator's policy written at each ``every_s`` mark of wall time.
 
-    A mark is taken at the loop's first pass after it (the loop turns every few hundred ms);
-    the file records the exact wall time, learner steps and env steps. A re-run in the same
-    directory (it resumes from the checkpoint there) numbers its marks on from the last file
-    found, rather than overwrite the first run's.
+    Mark k (k x ``every_s`` seconds) is asked for at the loop's first pass after it, and written
+    when the learner answers; the file records that wall time, learner and env steps. A mark
+    that a stalled loop passed over is not written with later weights: only the latest passed
+    mark is. A re-run in the same directory (it resumes from the checkpoint there) numbers its
+    marks on from the last file found, rather than overwrite the first run's: its names then
+    leave out the time the first run spent after its last mark.
     """
 
     def __init__(self, checkpoint_dir: Path, every_s: float) -> None:
-        self.dir, self.every_s, self.marks = checkpoint_dir, every_s, 0
+        self.dir, self.every_s, self.taken = checkpoint_dir, every_s, 0
         self.written: list[dict[str, Any]] = []
-        found = [float(p.name[len("policy-") : -len("min.pt")])
-                 for p in checkpoint_dir.glob("policy-*min.pt")]  # fmt: skip
-        self.offset_min = max(found, default=0.0)
+        self.offset_min = max(
+            (m for p in checkpoint_dir.glob("policy-*min.pt") if (m := mark_minutes(p.name))),
+            default=0.0,
+        )
 
-    def due(self, wall_s: float) -> bool:
-        return self.every_s > 0 and wall_s >= self.every_s * (self.marks + 1)
+    def due(self, wall_s: float) -> int | None:
+        """The latest mark passed at ``wall_s`` if it is not taken yet, else None."""
+        if self.every_s <= 0:
+            return None
+        mark = int(wall_s // self.every_s)
+        return mark if mark > self.taken else None
 
-    def skip(self) -> None:
-        """The next due mark passes without a file (the learner could not be asked)."""
-        self.marks += 1
+    def skip(self, mark: int) -> None:
+        """``mark`` passes without a file (the learner could not be asked)."""
+        self.taken = max(self.taken, mark)
 
-    def keep(self, weights: Mapping[str, np.ndarray], version: int, env_steps: int,
+    def keep(self, mark: int, weights: Mapping[str, np.ndarray], version: int, env_steps: int,
              wall_s: float) -> Path:  # fmt: skip
-        """Write the policy of the next due mark (the mark counts as taken either way).
+        """Write ``mark``'s policy (the mark counts as taken either way).
 
         Raises:
             DiskWriteError: the file could not be written (nothing partial is left).
         """
-        self.marks += 1
-        minutes = self.offset_min + self.every_s * self.marks / 60.0
-        path = self.dir / TIMED_POLICY_NAME.format(minutes=minutes)
-        record = {"path": str(path), "wall_min": round(minutes, 2), "wall_s": round(wall_s, 1),
+        self.skip(mark)
+        minutes = self.offset_min + self.every_s * mark / 60.0
+        path = self.dir / (TIMED_NAME.format(minutes=minutes) + ".pt")
+        record = {"path": str(path), "wall_min": round(minutes, 2),
+                  "saved_at_min": round(self.offset_min + wall_s / 60.0, 2),
                   "learner_steps": int(version), "env_steps": int(env_steps)}  # fmt: skip
         write_policy(path, weights, snapshot=record)
         self.written.append(record)
         return path
+
+
+def mark_minutes(name: str) -> float | None:
+    """The minutes in a timed snapshot's file name (``policy-005.00min.pt`` -> 5.0), or None."""
+    stem = name.split(".pt")[0].split(".zip")[0]
+    try:
+        return float(stem.removeprefix("policy-").removesuffix("min"))
+    except ValueError:
+        return None

@@ -76,21 +76,29 @@ def test_selection_needs_the_evaluator() -> None:
 def test_timed_snapshots_are_kept_at_each_mark_and_a_rerun_numbers_on(tmp_path: Path) -> None:
     weights, _ = LearnerService(SMALL, 3, 1, seed=0).get_weights()
     snapshots = PolicySnapshots(tmp_path, every_s=300.0)
-    assert not snapshots.due(299.9) and snapshots.due(300.0)
-    path = snapshots.keep(weights, 40, 1234, wall_s=300.4)
-    assert path == tmp_path / "policy-005.00min.pt" and not snapshots.due(599.0)
-    snapshots.skip()  # the learner did not answer at 10 min: no file, the next mark is 15
-    assert snapshots.keep(weights, 90, 5678, 900.2).name == "policy-015.00min.pt"
+    assert snapshots.due(299.9) is None and snapshots.due(300.0) == 1
+    path = snapshots.keep(1, weights, 40, 1234, wall_s=301.5)
+    assert path == tmp_path / "policy-005.00min.pt" and snapshots.due(599.0) is None
+    # A loop stalled past two marks: only the latest is written, under its own time (the
+    # 10-minute name never holds weights of minute 15).
+    assert snapshots.due(905.0) == 3
+    assert snapshots.keep(3, weights, 90, 5678, 905.0).name == "policy-015.00min.pt"
+    snapshots.skip(4)  # the learner did not answer at 20 min
+    assert snapshots.due(1210.0) is None and snapshots.due(1500.0) == 5
     assert [r["wall_min"] for r in snapshots.written] == [5.0, 15.0]
-    assert snapshots.written[0] == {"path": str(path), "wall_min": 5.0, "wall_s": 300.4,
+    assert snapshots.written[0] == {"path": str(path), "wall_min": 5.0, "saved_at_min": 5.03,
                                     "learner_steps": 40, "env_steps": 1234}  # fmt: skip
     policy, info = load_checkpoint_policy(path)  # what evaluate and export read
     assert info.obs_dim == 3
     for name, value in policy.state_dict().items():
         assert np.array_equal(value.numpy(), weights[name]), name
-    # A re-run in the same directory numbers on instead of overwriting the first run's files.
+    # A re-run in the same directory numbers on instead of overwriting the first run's files;
+    # a file of another name is not taken for one.
+    (tmp_path / "policy-final-min.pt").write_bytes(b"")
     again = PolicySnapshots(tmp_path, every_s=300.0)
-    assert again.keep(weights, 1, 1, 300.0).name == "policy-020.00min.pt"
-    assert not PolicySnapshots(tmp_path, every_s=0.0).due(1e9)
-    with pytest.raises(ConfigError, match="policy_snapshot_every_s"):
-        TrainConfig(policy_snapshot_every_s=-1)
+    assert again.keep(1, weights, 1, 1, 300.0).name == "policy-020.00min.pt"
+    assert again.written[0]["saved_at_min"] == 20.0
+    assert PolicySnapshots(tmp_path, every_s=0.0).due(1e9) is None
+    for bad in (-1.0, 0.5):  # names have 0.01-minute resolution
+        with pytest.raises(ConfigError, match="policy_snapshot_every_s"):
+            TrainConfig(policy_snapshot_every_s=bad)

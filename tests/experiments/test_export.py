@@ -144,14 +144,22 @@ def test_export_on_a_full_disk_leaves_no_partial_file(positioning_checkpoint, tm
     assert out["files"] == ["filler"] and out["tmp"] == []
 
 
-def test_a_sidecar_that_cannot_be_written_takes_the_export_with_it(
+def test_a_sidecar_that_cannot_be_written_keeps_the_export_from_appearing(
     positioning_checkpoint, tmp_path, capfd
 ) -> None:
-    """Without its sidecar an exported file would read as a learner checkpoint."""
+    """Without its sidecar an exported file would read as a learner checkpoint: OUT is renamed
+    into place only after its sidecar is written, and a failed re-export leaves the old OUT."""
     path, _ = positioning_checkpoint
     out = tmp_path / "export" / "policy.pt"
-    sidecar_path(out).mkdir(parents=True)  # where the sidecar goes, a directory: the rename fails
-    assert cli_main(["export", str(path), str(out), "--env-id", POSITIONING]) != 0
-    err = capfd.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "cannot write exported policy's sidecar" in err[0], err
-    assert sorted(p.name for p in out.parent.iterdir()) == ["policy.pt.json"]  # the directory
+    export_policy(path, out, env_id=POSITIONING)
+    before = out.read_bytes()
+    sidecar_path(out).unlink()
+    sidecar_path(out).mkdir()  # where the sidecar goes, a directory: its rename fails
+    fresh = tmp_path / "fresh" / "policy.pt"
+    sidecar_path(fresh).mkdir(parents=True)
+    for target in (out, fresh):
+        assert cli_main(["export", str(path), str(target), "--env-id", POSITIONING]) != 0
+        err = capfd.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "cannot write exported policy's sidecar" in err[0], err
+    assert out.read_bytes() == before and not fresh.exists()
+    assert sorted(p.name for p in tmp_path.rglob("*") if p.is_file()) == ["learner.pt", "policy.pt"]

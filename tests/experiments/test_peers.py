@@ -52,11 +52,13 @@ def test_a_run_killed_after_a_snapshot_keeps_its_record_and_can_be_evaluated(
            "--problem", "navigation", "--minutes", "60", "--save-every-min", "0.02",
            "--out", str(out)]  # fmt: skip
     repo = Path(__file__).resolve().parents[2]
-    proc = subprocess.Popen(cmd, cwd=repo, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    log = tmp_path / "train.log"  # a file, not a pipe: nothing reads it until the end
+    with open(log, "wb") as sink:
+        proc = subprocess.Popen(cmd, cwd=repo, stdout=sink, stderr=subprocess.STDOUT)
     try:
         deadline = time.monotonic() + 120
         while not (out / "run.json").exists():
-            assert proc.poll() is None, proc.stderr.read().decode() if proc.stderr else ""
+            assert proc.poll() is None, log.read_text()[-2000:]
             assert time.monotonic() < deadline, "no snapshot within 120 s"
             time.sleep(0.2)
     finally:
@@ -107,16 +109,18 @@ def test_an_rllib_peer_trains_by_wall_time_and_its_checkpoints_are_scored(
     pytest.importorskip("ray.rllib.algorithms.ppo")
     out = tmp_path / algo
     cmd = [sys.executable, "experiments/peers.py", "train", "--algo", algo, "--problem",
-           "navigation", "--minutes", "0.2", "--save-every-min", "0.1",
+           "navigation", "--minutes", "0.1", "--save-every-min", "0.05",
            "--out", str(out)]  # fmt: skip
     repo = Path(__file__).resolve().parents[2]
-    done = subprocess.run(cmd, cwd=repo, capture_output=True, text=True, timeout=300)
+    done = subprocess.run(cmd, cwd=repo, capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr[-2000:]
     record = json.loads((out / "run.json").read_text())
     assert record["complete"] is True and record["num_env_runners"] == (os.cpu_count() or 1)
-    assert [s["wall_min"] for s in record["snapshots"]] == [0.1, 0.2]
-    # A snapshot is taken at the end of the first iteration past its mark.
-    assert all(s["saved_at_min"] >= s["wall_min"] for s in record["snapshots"])
-    assert 0 < record["snapshots"][0]["env_steps"] <= record["env_steps"]
+    # A PPO iteration (4,000 env steps) outlasts a 3 s mark: only the latest mark passed at an
+    # iteration's end is saved, and the run ends on the budget's.
+    marks = [s["wall_min"] for s in record["snapshots"]]
+    assert marks[-1] == 0.1 and marks == sorted(set(marks))
+    for snap in record["snapshots"]:
+        assert snap["saved_at_min"] >= snap["wall_min"] and snap["env_steps"] > 0
     curve = script("peers").evaluate(out, episodes=1, seed=1000)
-    assert [c["wall_min"] for c in curve] == [0.1, 0.2]
+    assert [c["wall_min"] for c in curve] == marks

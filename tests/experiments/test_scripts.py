@@ -123,6 +123,8 @@ def test_evaluate_script_on_an_emulated_robot_in_simulated_time(tmp_path: Path) 
     data = json.loads((tmp_path / "ev" / "evaluation.json").read_text())
     assert data["env_id"].endswith("Sim-v0") and data["rs_address"].startswith("127.0.0.1:")
     assert data["n_episodes"] == 2
+    with pytest.raises(SystemExit):  # a setting of --emulate's robot, alone it would do nothing
+        script("evaluate").main([str(tmp_path / "learner.pt"), "--simulated-time"])
 
 
 def test_figures_from_tensorboard_and_an_evaluation(tmp_path: Path) -> None:
