@@ -259,7 +259,7 @@ def _snapshots(run_dir: Path) -> tuple[str, list[tuple[dict[str, Any], Loader]]]
 
         return record["env_id"], [(snap, load(snap)) for snap in record["snapshots"]]
     from robogym_ray.export import env_id_of_run, load_policy
-    from robogym_ray.learner.checkpoint import read
+    from robogym_ray.learner.checkpoint import CHECKPOINT_NAME, read
     from robogym_ray.training.selection import mark_minutes
 
     named = [(mark_minutes(p.name), p) for p in (run_dir / "checkpoints").glob("policy-*min.pt")]
@@ -278,6 +278,18 @@ def _snapshots(run_dir: Path) -> tuple[str, list[tuple[dict[str, Any], Loader]]]
             raise SystemExit(f"{path}: not a timed snapshot (no snapshot record in it)")
         snap = {k: v for k, v in state["snapshot"].items() if k != "path"}
         snaps.append((snap, lambda env, path=path: load_policy(path)))
+    # The run's final policy (learner.pt: the average, as the snapshots), at the time the run
+    # ended, when that is past the last mark: a run's curve ends where its training did.
+    summary = run_dir / "summary.json"
+    if summary.exists():
+        end = json.loads(summary.read_text())
+        last = max((s.get("saved_at_min", s["wall_min"]) for s, _ in snaps), default=0.0)
+        final = run_dir / "checkpoints" / CHECKPOINT_NAME
+        if final.is_file() and end["wall_s"] / 60 > last + 0.1:
+            at = round(end["wall_s"] / 60, 2)
+            snap = {"wall_min": at, "saved_at_min": at, "learner_steps": end["learner_steps"],
+                    "env_steps": end["env_steps"], "final": True}  # fmt: skip
+            snaps.append((snap, lambda env: load_policy(final)))
     return env_id, snaps
 
 

@@ -81,7 +81,7 @@ def test_a_training_runs_timed_snapshots_are_scored_like_a_peers(tmp_path: Path)
     from robogym_ray.learner.config import D4PGConfig
     from robogym_ray.learner.service import LearnerService
     from robogym_ray.training.selection import PolicySnapshots
-    from tests.experiments.conftest import NAVIGATION
+    from tests.experiments.conftest import NAVIGATION, save_learner
 
     run = tmp_path / "run"
     (run / "checkpoints").mkdir(parents=True)
@@ -91,10 +91,15 @@ def test_a_training_runs_timed_snapshots_are_scored_like_a_peers(tmp_path: Path)
     for minute in (1, 2):
         weights, _ = LearnerService(cfg, 20, 2, seed=minute).get_weights()
         snapshots.keep(weights, 10 * minute, 100 * minute, 60.0 * minute + 0.5)
+    # The run ended at 200 s: its final policy (learner.pt) is the curve's last point.
+    save_learner(run / "checkpoints" / "learner.pt", 20, 2)
+    end = {"wall_s": 200.0, "learner_steps": 30, "env_steps": 300}
+    (run / "summary.json").write_text(json.dumps(end))
     curve = script("peers").evaluate(run, episodes=2, seed=1000)
     assert json.loads((run / "curve.json").read_text()) == curve
     assert [(c["wall_min"], c["env_steps"], c["episodes"]) for c in curve] == [
-        (1.0, 100, 2), (2.0, 200, 2)]  # fmt: skip
+        (1.0, 100, 2), (2.0, 200, 2), (3.33, 300, 2)]  # fmt: skip
+    assert curve[-1]["final"] is True and "final" not in curve[0]
     for c in curve:
         assert sum(c[f"{k}_rate"] for k in ("success", "collision", "timeout", "other")) == (
             pytest.approx(1.0))  # fmt: skip
