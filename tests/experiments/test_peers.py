@@ -90,7 +90,7 @@ def test_a_training_runs_timed_snapshots_are_scored_like_a_peers(tmp_path: Path)
     snapshots = PolicySnapshots(run / "checkpoints", every_s=60.0)
     for minute in (1, 2):
         weights, _ = LearnerService(cfg, 20, 2, seed=minute).get_weights()
-        snapshots.keep(weights, 10 * minute, 100 * minute, 60.0 * minute + 0.5)
+        snapshots.keep(minute, weights, 10 * minute, 100 * minute, 60.0 * minute + 0.5)
     # The run ended at 200 s: its final policy (learner.pt) is the curve's last point.
     save_learner(run / "checkpoints" / "learner.pt", 20, 2)
     end = {"wall_s": 200.0, "learner_steps": 30, "env_steps": 300}
