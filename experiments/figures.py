@@ -143,17 +143,23 @@ def plot_time_to_success(
         reached[label] = None if when is None else round(when / 60, 1)
         if when is not None:
             ax.axvline(when / 60, color=line.get_color(), ls=":", lw=1)
-    ax.axhline(rate, color="gray", lw=0.8)
     title = f"time to {rate:.0%} (dotted: first full-window crossing)"
-    ax.set(xlabel="wall minutes", ylabel="evaluator success (last 100 episodes)",
-           ylim=(-0.02, 1.02), title=title)  # fmt: skip
+    ylabel = "evaluator success (last 100 episodes)"
+    return _save_rate_figure(plt, fig, ax, out, rate, ylabel, title), reached
+
+
+def _save_rate_figure(plt: Any, fig: Any, ax: Any, out: str | Path, rate: float, ylabel: str,
+                      title: str) -> Path:  # fmt: skip
+    """A success-against-wall-minutes figure's frame (the target rate drawn), saved."""
+    ax.axhline(rate, color="gray", lw=0.8)
+    ax.set(xlabel="wall minutes", ylabel=ylabel, ylim=(-0.02, 1.02), title=title)
     ax.grid(alpha=0.3)
     ax.legend(loc="lower right", fontsize=8)
     fig.tight_layout()
     out = Path(out)
     fig.savefig(out, dpi=120)
     plt.close(fig)
-    return out, reached
+    return out
 
 
 def saved_at(point: Mapping[str, float]) -> float:
@@ -188,16 +194,8 @@ def plot_curves(
             if seeded:
                 line.set_label(method)
         reached[label] = {f"{r:.0%}": first_snapshot(curve, r) for r in (0.90, 0.95)}
-    ax.axhline(0.95, color="gray", lw=0.8)
-    ax.set(xlabel="wall minutes", ylabel="success, 100 greedy episodes (seeds 1000-1099)",
-           ylim=(-0.02, 1.02), title=title)  # fmt: skip
-    ax.grid(alpha=0.3)
-    ax.legend(loc="lower right", fontsize=8)
-    fig.tight_layout()
-    out = Path(out)
-    fig.savefig(out, dpi=120)
-    plt.close(fig)
-    return out, reached
+    ylabel = "success, 100 greedy episodes (seeds 1000-1099)"
+    return _save_rate_figure(plt, fig, ax, out, 0.95, ylabel, title), reached
 
 
 def plot_targets(evaluation_json: str | Path, out: str | Path) -> Path:
