@@ -29,7 +29,7 @@ from torch import nn
 from robogym_ray.config import check_dir_path, check_fields, quote, read_json
 from robogym_ray.errors import ConfigError
 from robogym_ray.learner.checkpoint import policy_weights, read, staged_write, write_bytes
-from robogym_ray.text import clip_text
+from robogym_ray.text import clip_text, first_sentence
 
 FORMAT = "robogym-ray-policy/torchscript-v1"
 ONNX_FORMAT = "robogym-ray-policy/onnx-v1"
@@ -198,8 +198,7 @@ def load_exported(path: str | Path) -> tuple[Any, PolicyInfo]:
         with torch.inference_mode():
             shape = tuple(module(torch.zeros(1, info.obs_dim)).shape)
     except (OSError, RuntimeError, ValueError) as exc:  # not TorchScript, truncated, mismatched
-        first = (str(exc).strip().splitlines() or [type(exc).__name__])[0].split(". ")[0]
-        raise ConfigError(f"cannot load exported policy {path}: {clip_text(first, 200)}") from None
+        raise ConfigError(f"cannot load exported policy {path}: {first_sentence(exc)}") from None
     _check_answer(path, info, shape)
     return module, info
 

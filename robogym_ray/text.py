@@ -43,6 +43,12 @@ def reason(text: str, limit: int = MAX_REASON_CHARS) -> str:
     return clip_text(next((line for line in lines if line), ""), limit)
 
 
+def first_sentence(exc: BaseException, limit: int = 200) -> str:
+    """The first sentence of an exception's first line, clipped to ``limit`` (library messages,
+    torch's above all, run to paragraphs); its type's name when it has no message."""
+    return reason(str(exc), limit).split(". ")[0] or type(exc).__name__
+
+
 def preview(names: Collection[str]) -> str:
     """A bounded quote of client-sent names, the first few sorted: ``['a', 'b'] (+3 more)``."""
     shown = [quote(n) for n in nsmallest(MAX_PREVIEW_ITEMS, names)]

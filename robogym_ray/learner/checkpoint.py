@@ -33,6 +33,7 @@ import numpy as np
 import torch
 
 from robogym_ray.errors import ConfigError, DiskWriteError
+from robogym_ray.text import first_sentence
 
 CHECKPOINT_NAME = "learner.pt"
 """The learner's checkpoint in a run's ``checkpoints/`` folder."""
@@ -133,7 +134,7 @@ def _why_unreadable(exc: BaseException) -> str:
     if isinstance(exc, pickle.UnpicklingError):
         # Also a pickle of Python objects, which weights_only never runs.
         return "not a torch checkpoint of tensors (wrong format)"
-    first = (str(exc).strip().splitlines() or [type(exc).__name__])[0].split(". ")[0]
+    first = first_sentence(exc)
     if isinstance(exc, EOFError):
         return first if "empty" in first else f"truncated ({first or 'it ends early'})"
     # PytorchStreamReader on a cut or damaged zip archive: RuntimeError, or EINVAL from a seek

@@ -21,7 +21,7 @@ from robogym_ray.robots.server import (
     RobotServerHandle,
     start_robot_server,
 )
-from robogym_ray.text import MAX_MESSAGE_CHARS, clip_text, preview
+from robogym_ray.text import MAX_MESSAGE_CHARS, clip_text, first_sentence, preview
 
 LOGGER = "robogym_ray.robots.server"
 JOINTS = ("base", "shoulder", "elbow", "wrist_1", "wrist_2", "wrist_3")
@@ -118,3 +118,10 @@ def test_clip_text_and_preview_bound_their_output() -> None:
     assert clipped.endswith("chars cut]") and clip_text("short") == "short"
     quoted = preview(["k" * 10_000] * 1000)
     assert len(quoted) < 1000 and quoted.endswith("(+995 more)")
+
+
+def test_first_sentence_of_a_paragraph_long_library_error() -> None:
+    torch_like = RuntimeError("PytorchStreamReader failed. The file may be truncated.\nTrace...")
+    assert first_sentence(torch_like) == "PytorchStreamReader failed"
+    assert first_sentence(EOFError()) == "EOFError"  # no message: its type
+    assert len(first_sentence(ValueError("x" * 5000), limit=200)) <= 200
