@@ -200,9 +200,9 @@ def _train_rllib(algo: str, problem: str, minutes: float, seed: int, out: Path,
             if mark is not None:
                 algo_obj.save_to_path(snapshot_path(out, algo, mark).resolve())
                 run.saved_mark(mark, c["env_steps"])
-                run.write(counters(c), complete=mark == minutes)
-            if mark == minutes:
-                return run.write(counters(c), complete=True)
+                record = run.write(counters(c), complete=mark == minutes)
+                if mark == minutes:
+                    return record
     finally:
         algo_obj.stop()
 

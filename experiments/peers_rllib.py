@@ -6,9 +6,9 @@ stack's ``PPOConfig()`` / ``SACConfig()`` with their defaults, one env runner pe
 by ``gymnasium.make`` on our Sim id. Nothing about the algorithm is tuned.
 
 ``ray[rllib]==2.60.0`` pins ``gymnasium==1.2.2`` while this project's lock has 1.4.0, so RLlib
-gets its own virtual environment (``docs/results-log.md``, "Peers", has the commands); this
-module imports RLlib only inside its functions, and ``peers.py`` imports it only for an
-``rllib-*`` algorithm.
+gets its own virtual environment (``docs/results-log.md``, "Seeds and peers side by side", has
+the commands); this module imports RLlib only inside its functions, and ``peers.py`` imports it
+only for an ``rllib-*`` algorithm.
 
 A snapshot is ``Algorithm.save_to_path`` (RLlib's own checkpoint); its evaluation loads only
 the RLModule from it and acts as RLlib's env runner does with ``explore=False``: the inference
@@ -27,8 +27,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-
-RLLIB_ALGOS = ("rllib-ppo", "rllib-sac")
 
 
 def _make_env(env_id: str) -> Callable[[dict[str, Any]], Any]:

@@ -136,7 +136,7 @@ def _why_unreadable(exc: BaseException) -> str:
         return "not a torch checkpoint of tensors (wrong format)"
     first = first_sentence(exc)
     if isinstance(exc, EOFError):
-        return first if "empty" in first else f"truncated ({first or 'it ends early'})"
+        return first if "empty" in first else f"truncated ({first})"
     # PytorchStreamReader on a cut or damaged zip archive: RuntimeError, or EINVAL from a seek
     # past the end that the archive's directory asked for.
     if isinstance(exc, RuntimeError) or getattr(exc, "errno", None) == errno.EINVAL:

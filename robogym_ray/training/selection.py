@@ -125,8 +125,7 @@ class PolicySnapshots:
 
 def mark_minutes(name: str) -> float | None:
     """The minutes in a timed snapshot's file name (``policy-005.00min.pt`` -> 5.0), or None."""
-    stem = name.split(".pt")[0].split(".zip")[0]
     try:
-        return float(stem.removeprefix("policy-").removesuffix("min"))
+        return float(name.removeprefix("policy-").removesuffix(".pt").removesuffix("min"))
     except ValueError:
         return None
