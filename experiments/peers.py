@@ -5,6 +5,7 @@ on the same machine, for the same wall-clock budget, scored the same way.
     python experiments/peers.py train --algo sb3-td3 --problem navigation --minutes 50 --seed 0
     python experiments/peers.py evaluate runs/peers/navigation-sb3-td3-seed0
     python experiments/peers.py evaluate RUN   # a robogym-ray train run: its timed snapshots
+    python experiments/peers.py exploration RUN   # an SB3 SAC run's exploration per snapshot
 
 ``train`` runs the algorithm as its users run it — Stable-Baselines3's documented defaults on one
 env made with ``gymnasium.make`` (robo-gym's own example is ``TD3(MlpPolicy, env)``; TD3 gets the
@@ -232,6 +233,38 @@ def evaluate(run_dir: Path, episodes: int = 100, seed: int = 1000) -> list[dict[
     return curve
 
 
+def exploration(run_dir: Path, episodes: int = 100, seed: int = 1000) -> list[dict[str, Any]]:
+    """How much an SB3 SAC run still explores at each snapshot: its entropy coefficient (tuned
+    by SAC itself) and its policy's mean standard deviation, before tanh, on the first
+    observations of the evaluation episodes. Writes ``exploration.json``. (TD3's is fixed: the
+    Gaussian noise, sigma 0.1; D4PG's is its config's ``sigma``.)"""
+    import torch
+
+    import robogym_ray  # noqa: F401 - registers the ids
+
+    record = json.loads((run_dir / "run.json").read_text())
+    if record["algo"] != "sb3-sac":
+        algo = record["algo"]
+        raise SystemExit(f"{run_dir}: exploration is measured for sb3-sac runs, not {algo}")
+    env = gym.make(record["env_id"])
+    try:
+        obs = np.stack([env.reset(seed=seed + i)[0] for i in range(episodes)])
+    finally:
+        env.close()
+    points = []
+    for snap in record["snapshots"]:
+        model = _sb3_class("sb3-sac").load(snapshot_path(run_dir, "sb3-sac", snap["wall_min"]),
+                                           device="cpu")  # fmt: skip
+        with torch.no_grad():
+            _, log_std, _ = model.actor.get_action_dist_params(model.policy.obs_to_tensor(obs)[0])
+        points.append({"wall_min": snap["wall_min"], "env_steps": snap["env_steps"],
+                       "ent_coef": round(float(model.log_ent_coef.exp()), 5),
+                       "policy_std": round(float(log_std.exp().mean()), 4)})  # fmt: skip
+        print(json.dumps(points[-1]), flush=True)
+    (run_dir / "exploration.json").write_text(json.dumps(points, indent=2))
+    return points
+
+
 Loader = Callable[[gym.Env], Callable[[np.ndarray], np.ndarray]]
 
 
@@ -307,11 +340,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     e.add_argument("run_dir")
     e.add_argument("--episodes", type=int, default=100)
     e.add_argument("--seed", type=int, default=1000, help="first reset seed")
+    x = sub.add_parser("exploration", help="an SB3 SAC run's entropy coefficient and policy std "
+                       "per snapshot (writes exploration.json)")  # fmt: skip
+    x.add_argument("run_dir")
     args = parser.parse_args(argv)
     if args.command == "train":
         out = Path(args.out or f"runs/peers/{args.problem}-{args.algo}-seed{args.seed}")
         record = train(args.algo, args.problem, args.minutes, args.seed, out, args.save_every_min)
         print(json.dumps(record))
+    elif args.command == "exploration":
+        exploration(Path(args.run_dir))
     else:
         evaluate(Path(args.run_dir), args.episodes, args.seed)
     return 0

@@ -40,6 +40,19 @@ def test_a_peer_saves_snapshots_by_wall_time_and_each_is_scored(tmp_path: Path, 
     for point in curve:
         rates = [point[f"{k}_rate"] for k in ("success", "collision", "timeout", "other")]
         assert point["episodes"] == 2 and sum(rates) == pytest.approx(1.0)
+    if algo == "sb3-sac":
+        points = peers.exploration(out, episodes=3)
+        assert json.loads((out / "exploration.json").read_text()) == points
+        assert [p["wall_min"] for p in points] == [0.02, 0.04]
+        assert all(0 < p["ent_coef"] <= 1 and p["policy_std"] > 0 for p in points)
+        if record["gradient_updates"] > 0:  # none on a machine too loaded to pass 100 steps
+            # SAC tunes its entropy coefficient from 1.0 (SB3's "auto") at every update, and
+            # every step past 100 updates: each snapshot is read from its own file.
+            assert points[-1]["ent_coef"] < 1
+            assert points[0] != {**points[1], "wall_min": 0.02, "env_steps": steps[0]}
+    else:
+        with pytest.raises(SystemExit, match="sb3-sac runs, not sb3-td3"):
+            peers.exploration(out)
 
 
 def test_a_run_killed_after_a_snapshot_keeps_its_record_and_can_be_evaluated(
