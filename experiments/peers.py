@@ -233,18 +233,19 @@ def evaluate(run_dir: Path, episodes: int = 100, seed: int = 1000) -> list[dict[
     return curve
 
 
-def exploration(run_dir: Path, episodes: int = 100, seed: int = 1000) -> list[dict[str, Any]]:
-    """How much an SB3 SAC run still explores at each snapshot: its entropy coefficient (tuned
-    by SAC itself) and its policy's mean standard deviation, before tanh, on the first
-    observations of the evaluation episodes. Writes ``exploration.json``. (TD3's is fixed: the
-    Gaussian noise, sigma 0.1; D4PG's is its config's ``sigma``.)"""
+def exploration(run_dir: Path, episodes: int = 100, seed: int = 1000,
+                samples: int = 100) -> list[dict[str, Any]]:  # fmt: skip
+    """How much an SB3 SAC run still explores at each snapshot, on the first observations of
+    the evaluation episodes: its entropy coefficient (tuned by SAC itself), its policy's mean
+    standard deviation before tanh, and the standard deviation of its sampled actions in
+    [-1, 1] (``samples`` per observation, a fixed torch seed): the one comparable with TD3's
+    Gaussian noise (sigma 0.1) and D4PG's workers' sigmas. Writes ``exploration.json``."""
     import torch
 
     import robogym_ray  # noqa: F401 - registers the ids
 
     record = json.loads((run_dir / "run.json").read_text())
-    if record["algo"] != "sb3-sac":
-        algo = record["algo"]
+    if (algo := record["algo"]) != "sb3-sac":
         raise SystemExit(f"{run_dir}: exploration is measured for sb3-sac runs, not {algo}")
     env = gym.make(record["env_id"])
     try:
@@ -253,13 +254,16 @@ def exploration(run_dir: Path, episodes: int = 100, seed: int = 1000) -> list[di
         env.close()
     points = []
     for snap in record["snapshots"]:
-        model = _sb3_class("sb3-sac").load(snapshot_path(run_dir, "sb3-sac", snap["wall_min"]),
-                                           device="cpu")  # fmt: skip
+        model = _sb3_class(algo).load(snapshot_path(run_dir, algo, snap["wall_min"]), device="cpu")
         with torch.no_grad():
-            _, log_std, _ = model.actor.get_action_dist_params(model.policy.obs_to_tensor(obs)[0])
+            x = model.policy.obs_to_tensor(obs)[0]
+            mean, log_std, _ = model.actor.get_action_dist_params(x)
+            noise = torch.randn((samples, *mean.shape), generator=torch.Generator().manual_seed(0))
+            actions = torch.tanh(mean + log_std.exp() * noise)  # SAC's squashed Gaussian
         points.append({"wall_min": snap["wall_min"], "env_steps": snap["env_steps"],
                        "ent_coef": round(float(model.log_ent_coef.exp()), 5),
-                       "policy_std": round(float(log_std.exp().mean()), 4)})  # fmt: skip
+                       "policy_std": round(float(log_std.exp().mean()), 4),
+                       "action_std": round(float(actions.std(0).mean()), 4)})  # fmt: skip
         print(json.dumps(points[-1]), flush=True)
     (run_dir / "exploration.json").write_text(json.dumps(points, indent=2))
     return points

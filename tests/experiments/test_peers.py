@@ -45,11 +45,14 @@ def test_a_peer_saves_snapshots_by_wall_time_and_each_is_scored(tmp_path: Path, 
         assert json.loads((out / "exploration.json").read_text()) == points
         assert [p["wall_min"] for p in points] == [0.02, 0.04]
         assert all(0 < p["ent_coef"] <= 1 and p["policy_std"] > 0 for p in points)
+        assert all(0 < p["action_std"] < 1 for p in points)  # actions in [-1, 1]
+        assert peers.exploration(out, episodes=3) == points  # the samples' seed is fixed
         if record["gradient_updates"] > 0:  # none on a machine too loaded to pass 100 steps
-            # SAC tunes its entropy coefficient from 1.0 (SB3's "auto") at every update, and
-            # every step past 100 updates: each snapshot is read from its own file.
+            # SB3 updates at every step past the first 100, and SAC's entropy coefficient
+            # (from 1.0, SB3's "auto") moves at every update: each snapshot read from its file.
             assert points[-1]["ent_coef"] < 1
-            assert points[0] != {**points[1], "wall_min": 0.02, "env_steps": steps[0]}
+            measured = ("ent_coef", "policy_std", "action_std")
+            assert [points[0][k] for k in measured] != [points[1][k] for k in measured]
     else:
         with pytest.raises(SystemExit, match="sb3-sac runs, not sb3-td3"):
             peers.exploration(out)
