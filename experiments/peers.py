@@ -79,7 +79,13 @@ def build(algo: str, env: gym.Env, seed: int) -> Any:
 
         dims = env.action_space.shape[0]
         kwargs["action_noise"] = NormalActionNoise(np.zeros(dims), 0.1 * np.ones(dims))
-    return _sb3_class(algo)("MlpPolicy", env, **kwargs)
+    model = _sb3_class(algo)("MlpPolicy", env, **kwargs)
+    # SB3's default logger writes nothing at verbose 0 yet makes an empty /tmp/SB3-<date>
+    # folder per run; the same logger without a folder records the same values, leaves none.
+    from stable_baselines3.common.logger import Logger
+
+    model.set_logger(Logger(folder=None, output_formats=[]))
+    return model
 
 
 class Run:

@@ -8,6 +8,7 @@ import os
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -21,11 +22,18 @@ def needs_sb3() -> None:
 
 
 @pytest.mark.parametrize("algo", ["sb3-td3", "sb3-sac"])
-def test_a_peer_saves_snapshots_by_wall_time_and_each_is_scored(tmp_path: Path, algo: str) -> None:
+def test_a_peer_saves_snapshots_by_wall_time_and_each_is_scored(
+    tmp_path: Path, algo: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
     needs_sb3()
     peers = script("peers")
     out = tmp_path / algo
+    temp = tmp_path / "temp"  # where SB3's default logger would make its SB3-<date> folder
+    temp.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(temp))
+    monkeypatch.delenv("SB3_LOGDIR", raising=False)
     record = peers.train(algo, "navigation", minutes=0.04, seed=0, out=out, save_every_min=0.02)
+    assert not list(temp.glob("SB3-*"))
     assert [s["wall_min"] for s in record["snapshots"]] == [0.02, 0.04]
     assert record["complete"] is True
     assert json.loads((out / "run.json").read_text()) == record
