@@ -347,19 +347,20 @@ def main(argv: Sequence[str] | None = None) -> int:
     t.add_argument("--save-every-min", type=float, default=5.0)
     t.add_argument("--out", default=None, help="default: runs/peers/PROBLEM-ALGO-seedSEED")
     e = sub.add_parser("evaluate", help="score a run's snapshots (writes curve.json)")
-    e.add_argument("run_dir")
-    e.add_argument("--episodes", type=int, default=100)
-    e.add_argument("--seed", type=int, default=1000, help="first reset seed")
-    x = sub.add_parser("exploration", help="an SB3 SAC run's entropy coefficient and policy std "
-                       "per snapshot (writes exploration.json)")  # fmt: skip
-    x.add_argument("run_dir")
+    x = sub.add_parser("exploration", help="an SB3 SAC run's entropy coefficient, policy std "
+                       "and sampled actions' std per snapshot, on the evaluation episodes' "
+                       "first observations (writes exploration.json)")  # fmt: skip
+    for p in (e, x):  # the same episodes: exploration reads where evaluate scores
+        p.add_argument("run_dir")
+        p.add_argument("--episodes", type=int, default=100)
+        p.add_argument("--seed", type=int, default=1000, help="first reset seed")
     args = parser.parse_args(argv)
     if args.command == "train":
         out = Path(args.out or f"runs/peers/{args.problem}-{args.algo}-seed{args.seed}")
         record = train(args.algo, args.problem, args.minutes, args.seed, out, args.save_every_min)
         print(json.dumps(record))
     elif args.command == "exploration":
-        exploration(Path(args.run_dir))
+        exploration(Path(args.run_dir), args.episodes, args.seed)
     else:
         evaluate(Path(args.run_dir), args.episodes, args.seed)
     return 0

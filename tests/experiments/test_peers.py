@@ -55,6 +55,9 @@ def test_a_peer_saves_snapshots_by_wall_time_and_each_is_scored(
         assert all(0 < p["ent_coef"] <= 1 and p["policy_std"] > 0 for p in points)
         assert all(0 < p["action_std"] < 1 for p in points)  # actions in [-1, 1]
         assert peers.exploration(out, episodes=3) == points  # the samples' seed is fixed
+        # The command line reads the same episodes as `evaluate` does: its flags reach it.
+        assert peers.main(["exploration", str(out), "--episodes", "3", "--seed", "1000"]) == 0
+        assert json.loads((out / "exploration.json").read_text()) == points
         if record["gradient_updates"] > 0:  # none on a machine too loaded to pass 100 steps
             # SB3 updates at every step past the first 100, and SAC's entropy coefficient
             # (from 1.0, SB3's "auto") moves at every update: each snapshot read from its file.
