@@ -267,7 +267,7 @@ def exploration(run_dir: Path, episodes: int = 100, seed: int = 1000,
             noise = torch.randn((samples, *mean.shape), generator=torch.Generator().manual_seed(0))
             actions = torch.tanh(mean + log_std.exp() * noise)  # SAC's squashed Gaussian
         points.append({"wall_min": snap["wall_min"], "env_steps": snap["env_steps"],
-                       "ent_coef": round(float(model.log_ent_coef.exp()), 5),
+                       "ent_coef": round(float(model.log_ent_coef.detach().exp()), 5),
                        "policy_std": round(float(log_std.exp().mean()), 4),
                        "action_std": round(float(actions.std(0).mean()), 4)})  # fmt: skip
         print(json.dumps(points[-1]), flush=True)
