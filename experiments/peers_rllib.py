@@ -103,7 +103,9 @@ def load_policy(snapshot: Path) -> Callable[[np.ndarray], np.ndarray]:
     from ray.rllib.core.columns import Columns
     from ray.rllib.core.rl_module.rl_module import RLModule
 
-    path = snapshot / COMPONENT_LEARNER_GROUP / COMPONENT_LEARNER / COMPONENT_RL_MODULE
+    # RLlib reads checkpoints through pyarrow's filesystems, which take a relative path for a
+    # URI without a scheme and refuse it: `peers.py evaluate runs/peers/RUN` needs it absolute.
+    path = snapshot.resolve() / COMPONENT_LEARNER_GROUP / COMPONENT_LEARNER / COMPONENT_RL_MODULE
     module = RLModule.from_checkpoint(path / DEFAULT_MODULE_ID)
     dist_cls = module.get_inference_action_dist_cls()
 

@@ -134,7 +134,7 @@ def test_a_training_runs_timed_snapshots_are_scored_like_a_peers(tmp_path: Path)
 
 @pytest.mark.parametrize("algo", ["rllib-ppo", "rllib-sac"])
 def test_an_rllib_peer_trains_by_wall_time_and_its_checkpoints_are_scored(
-    tmp_path: Path, algo: str
+    tmp_path: Path, algo: str, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """RLlib lives in its own virtual environment (requirements/peers-rllib.txt): this test runs
     there (``pip install pytest`` in it) and is skipped where RLlib is not installed."""
@@ -154,5 +154,7 @@ def test_an_rllib_peer_trains_by_wall_time_and_its_checkpoints_are_scored(
     assert marks[-1] == 0.1 and marks == sorted(set(marks))
     for snap in record["snapshots"]:
         assert snap["saved_at_min"] >= snap["wall_min"] and snap["env_steps"] > 0
-    curve = script("peers").evaluate(out, episodes=1, seed=1000)
+    # As the docs' commands give it: a run folder relative to the working directory.
+    monkeypatch.chdir(tmp_path)
+    curve = script("peers").evaluate(Path(algo), episodes=1, seed=1000)
     assert [c["wall_min"] for c in curve] == marks
