@@ -154,7 +154,7 @@ def _save_rate_figure(plt: Any, fig: Any, ax: Any, out: str | Path, rate: float,
     ax.axhline(rate, color="gray", lw=0.8)
     ax.set(xlabel="wall minutes", ylabel=ylabel, ylim=(-0.02, 1.02), title=title)
     ax.grid(alpha=0.3)
-    ax.legend(loc="lower right", fontsize=8)
+    ax.legend(loc="best", fontsize=8)
     fig.tight_layout()
     out = Path(out)
     fig.savefig(out, dpi=120)
