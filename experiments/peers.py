@@ -5,7 +5,7 @@ on the same machine, for the same wall-clock budget, scored the same way.
     python experiments/peers.py train --algo sb3-td3 --problem navigation --minutes 50 --seed 0
     python experiments/peers.py evaluate runs/peers/navigation-sb3-td3-seed0
     python experiments/peers.py evaluate RUN   # a robogym-ray train run: its timed snapshots
-    python experiments/peers.py exploration RUN   # an SB3 SAC run's exploration per snapshot
+    python experiments/peers.py exploration RUN   # an SB3 SAC or RLlib PPO run's exploration
 
 ``train`` runs the algorithm as its users run it — Stable-Baselines3's documented defaults on one
 env made with ``gymnasium.make`` (robo-gym's own example is ``TD3(MlpPolicy, env)``; TD3 gets the
@@ -241,18 +241,22 @@ def evaluate(run_dir: Path, episodes: int = 100, seed: int = 1000) -> list[dict[
 
 def exploration(run_dir: Path, episodes: int = 100, seed: int = 1000,
                 samples: int = 100) -> list[dict[str, Any]]:  # fmt: skip
-    """How much an SB3 SAC run still explores at each snapshot, on the first observations of
-    the evaluation episodes: its entropy coefficient (tuned by SAC itself), its policy's mean
-    standard deviation before tanh, and the standard deviation of its sampled actions in
-    [-1, 1] (``samples`` per observation, a fixed torch seed): the one comparable with TD3's
-    Gaussian noise (sigma 0.1) and D4PG's workers' sigmas. Writes ``exploration.json``."""
+    """How much an SB3 SAC or RLlib PPO run still explores at each snapshot, on the first
+    observations of the evaluation episodes: its policy's mean standard deviation (SAC: before
+    tanh; PPO: of its Gaussian, before RLlib clips a sample to [-1, 1]) and the standard
+    deviation of its sampled actions in [-1, 1] (``samples`` per observation, a fixed torch
+    seed): the one comparable with TD3's Gaussian noise (sigma 0.1) and D4PG's workers'
+    sigmas. SAC adds its entropy coefficient (tuned by SAC itself), PPO the share of sampled
+    action components clipped to a bound. Writes ``exploration.json``."""
     import torch
 
     import robogym_ray  # noqa: F401 - registers the ids
 
     record = json.loads((run_dir / "run.json").read_text())
-    if (algo := record["algo"]) != "sb3-sac":
-        raise SystemExit(f"{run_dir}: exploration is measured for sb3-sac runs, not {algo}")
+    if (algo := record["algo"]) not in ("sb3-sac", "rllib-ppo"):
+        raise SystemExit(
+            f"{run_dir}: exploration is measured for sb3-sac and rllib-ppo runs, not {algo}"
+        )
     env = gym.make(record["env_id"])
     try:
         obs = np.stack([env.reset(seed=seed + i)[0] for i in range(episodes)])
@@ -260,15 +264,24 @@ def exploration(run_dir: Path, episodes: int = 100, seed: int = 1000,
         env.close()
     points = []
     for snap in record["snapshots"]:
-        model = _sb3_class(algo).load(snapshot_path(run_dir, algo, snap["wall_min"]), device="cpu")
-        with torch.no_grad():
-            x = model.policy.obs_to_tensor(obs)[0]
-            mean, log_std, _ = model.actor.get_action_dist_params(x)
-            noise = torch.randn((samples, *mean.shape), generator=torch.Generator().manual_seed(0))
-            actions = torch.tanh(mean + log_std.exp() * noise)  # SAC's squashed Gaussian
-        points.append({"wall_min": snap["wall_min"], "env_steps": snap["env_steps"],
-                       "ent_coef": round(float(model.log_ent_coef.detach().exp()), 5),
-                       "policy_std": round(float(log_std.exp().mean()), 4),
+        path = snapshot_path(run_dir, algo, snap["wall_min"])
+        if algo == "sb3-sac":
+            model = _sb3_class(algo).load(path, device="cpu")
+            with torch.no_grad():
+                mean, log_std, _ = model.actor.get_action_dist_params(
+                    model.policy.obs_to_tensor(obs)[0]
+                )
+            std, squash = log_std.exp(), torch.tanh  # SAC's squashed Gaussian
+            extra = {"ent_coef": round(float(model.log_ent_coef.detach().exp()), 5)}
+        else:
+            mean, std = (torch.as_tensor(a) for a in _rllib().gaussian(path, obs))
+            extra, squash = {}, lambda a: a.clamp(-1.0, 1.0)  # RLlib clips (normalize_actions)
+        noise = torch.randn((samples, *mean.shape), generator=torch.Generator().manual_seed(0))
+        actions = squash(mean + std * noise)
+        if algo == "rllib-ppo":
+            extra["clipped_share"] = round(float((actions.abs() >= 1.0).float().mean()), 4)
+        points.append({"wall_min": snap["wall_min"], "env_steps": snap["env_steps"], **extra,
+                       "policy_std": round(float(std.mean()), 4),
                        "action_std": round(float(actions.std(0).mean()), 4)})  # fmt: skip
         print(json.dumps(points[-1]), flush=True)
     (run_dir / "exploration.json").write_text(json.dumps(points, indent=2))
@@ -347,9 +360,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     t.add_argument("--save-every-min", type=float, default=5.0)
     t.add_argument("--out", default=None, help="default: runs/peers/PROBLEM-ALGO-seedSEED")
     e = sub.add_parser("evaluate", help="score a run's snapshots (writes curve.json)")
-    x = sub.add_parser("exploration", help="an SB3 SAC run's entropy coefficient, policy std "
-                       "and sampled actions' std per snapshot, on the evaluation episodes' "
-                       "first observations (writes exploration.json)")  # fmt: skip
+    x = sub.add_parser("exploration", help="an SB3 SAC or RLlib PPO run's policy std and "
+                       "sampled actions' std per snapshot (SAC: its entropy coefficient; PPO: "
+                       "the share of samples clipped), on the evaluation episodes' first "
+                       "observations (writes exploration.json)")  # fmt: skip
     for p in (e, x):  # the same episodes: exploration reads where evaluate scores
         p.add_argument("run_dir")
         p.add_argument("--episodes", type=int, default=100)

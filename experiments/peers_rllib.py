@@ -91,22 +91,41 @@ def batch_sizes(algo_obj: Any) -> dict[str, Any]:
     }
 
 
-def load_policy(snapshot: Path) -> Callable[[np.ndarray], np.ndarray]:
-    """The greedy policy of an RLlib checkpoint, answering in [-1, 1]."""
-    import torch
+def _module(snapshot: Path) -> Any:
+    """The RLModule of an RLlib checkpoint (``Algorithm.save_to_path``)."""
     from ray.rllib.core import (
         COMPONENT_LEARNER,
         COMPONENT_LEARNER_GROUP,
         COMPONENT_RL_MODULE,
         DEFAULT_MODULE_ID,
     )
-    from ray.rllib.core.columns import Columns
     from ray.rllib.core.rl_module.rl_module import RLModule
 
     # RLlib reads checkpoints through pyarrow's filesystems, which take a relative path for a
     # URI without a scheme and refuse it: `peers.py evaluate runs/peers/RUN` needs it absolute.
     path = snapshot.resolve() / COMPONENT_LEARNER_GROUP / COMPONENT_LEARNER / COMPONENT_RL_MODULE
-    module = RLModule.from_checkpoint(path / DEFAULT_MODULE_ID)
+    return RLModule.from_checkpoint(path / DEFAULT_MODULE_ID)
+
+
+def gaussian(snapshot: Path, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A PPO checkpoint's diagonal Gaussian at each of ``obs`` (a batch): its means and standard
+    deviations, in the normalised action space, before RLlib clips a sample to [-1, 1]."""
+    import torch
+    from ray.rllib.core.columns import Columns
+
+    with torch.no_grad():
+        batch = {Columns.OBS: torch.as_tensor(obs, dtype=torch.float32)}
+        inputs = _module(snapshot).forward_inference(batch)[Columns.ACTION_DIST_INPUTS]
+    mean, log_std = inputs.chunk(2, dim=-1)  # RLlib's TorchDiagGaussian: means, then log stds
+    return mean.numpy(), log_std.exp().numpy()
+
+
+def load_policy(snapshot: Path) -> Callable[[np.ndarray], np.ndarray]:
+    """The greedy policy of an RLlib checkpoint, answering in [-1, 1]."""
+    import torch
+    from ray.rllib.core.columns import Columns
+
+    module = _module(snapshot)
     dist_cls = module.get_inference_action_dist_cls()
 
     def policy(obs: np.ndarray) -> np.ndarray:

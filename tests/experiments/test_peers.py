@@ -65,7 +65,7 @@ def test_a_peer_saves_snapshots_by_wall_time_and_each_is_scored(
             measured = ("ent_coef", "policy_std", "action_std")
             assert [points[0][k] for k in measured] != [points[1][k] for k in measured]
     else:
-        with pytest.raises(SystemExit, match="sb3-sac runs, not sb3-td3"):
+        with pytest.raises(SystemExit, match="sb3-sac and rllib-ppo runs, not sb3-td3"):
             peers.exploration(out)
 
 
@@ -158,3 +158,8 @@ def test_an_rllib_peer_trains_by_wall_time_and_its_checkpoints_are_scored(
     monkeypatch.chdir(tmp_path)
     curve = script("peers").evaluate(Path(algo), episodes=1, seed=1000)
     assert [c["wall_min"] for c in curve] == marks
+    if algo == "rllib-ppo":  # its Gaussian's std, and how much of what it samples is clipped
+        points = script("peers").exploration(Path(algo), episodes=2)
+        assert [p["wall_min"] for p in points] == marks
+        assert all(p["policy_std"] > 0 and 0 <= p["clipped_share"] <= 1 for p in points)
+        assert all(0 < p["action_std"] <= 1 for p in points)  # samples clipped to [-1, 1]
