@@ -26,6 +26,7 @@ steps, gradient updates per env step, env steps/s, the load average.
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import os
 import platform
@@ -45,6 +46,7 @@ SB3_ALGOS = ("sb3-td3", "sb3-sac")
 ALGOS = (*SB3_ALGOS, "rllib-ppo", "rllib-sac")
 
 
+@functools.cache  # executed once: evaluate and exploration ask for it at every snapshot
 def _rllib() -> Any:
     """``peers_rllib.py`` beside this file (imported by path: tests load this script by path)."""
     import importlib.util
