@@ -30,6 +30,7 @@ that learners bootstrap from the last state. ``info["final_status"]`` is set on 
 
 from __future__ import annotations
 
+import math
 from abc import abstractmethod
 from collections.abc import Callable, Mapping
 from typing import Any, ClassVar
@@ -291,7 +292,34 @@ class RobotServerEnv(gym.Env[np.ndarray, np.ndarray]):
                 token = getattr(self.lease, "token", None) or self.token
                 factory = self.client_factory or RobotServerClient
                 self.client = factory(self.lease.address, deadlines=self.deadlines, token=token)
+            self._check_arguments(self.client)
         return self.client
+
+    def _check_arguments(self, client: Any) -> None:
+        """Where the server answers GetArguments, refuse one launched for another task: its
+        action rate, rs_mode or action_mode differ from what ``server_spec()`` asks for (a
+        real robot's server is started by hand). Servers without it (robo-gym 2.0.x's, which
+        answer UNIMPLEMENTED) and clients without it (a real-robot actor's) are taken on trust.
+        """
+        ask = getattr(client, "get_arguments", None)
+        args = ask() if ask is not None else None
+        if args is None:
+            return
+        options = self.server_spec()[2]
+        rate = options.get("action_cycle_rate")
+        if rate is not None and not math.isclose(args.action_cycle_rate, float(rate), rel_tol=1e-4):
+            self._refuse_server("action_cycle_rate", f"{args.action_cycle_rate:g}", rate)
+        for name in ("rs_mode", "action_mode"):
+            want, got = options.get(name), getattr(args, name)
+            if want is not None and got and got != want:
+                self._refuse_server(name, got, want)
+
+    def _refuse_server(self, name: str, got: str, want: str) -> None:
+        address = getattr(self.client, "address", "?")
+        raise ConfigError(
+            f"{type(self).__name__}: the robot server at {address} runs {name} {got}, "
+            f"this task needs {want} (restart it with {name}:={want})"
+        )
 
     def _disconnect(self) -> None:
         if self.client is not None:

@@ -93,6 +93,12 @@ class InProcessClient:
             self.deadlines.send_action_get_state,
         )
 
+    def get_arguments(self) -> pb.Arguments:
+        from robogym_ray.robots.server import arguments_to_msg
+
+        call = self.core.get_arguments
+        return arguments_to_msg(self._call("GetArguments", call, self.deadlines.get_state))
+
     def close(self) -> None:
         """Nothing to close: the core belongs to the lease."""
 

@@ -1,4 +1,4 @@
-"""Robot-server client: robo-gym's four RPCs with a deadline on every call and typed errors.
+"""Robot-server client: robo-gym's RPCs with a deadline on every call and typed errors.
 
 robo-gym's own client (spec a.2) raises a bare ``Exception`` or lets ``grpc.RpcError`` escape.
 Ours turns every failure into a ``RobotServerError`` whose message names the server address,
@@ -109,6 +109,20 @@ class RobotServerClient:
         return self._state_call(
             "SendActionGetState", _action_msg(action), self.deadlines.send_action_get_state
         )
+
+    def get_arguments(self) -> pb.Arguments | None:
+        """GetArguments (robo-gym-server-modules' master, after 0.3.0.1): the server's action
+        rate and modes, or None from a server without it (it answers ``UNIMPLEMENTED``, as
+        robo-gym 2.0.x's servers and all of 2.1.2's but the Panda's do)."""
+        try:
+            reply, call = self._call("GetArguments", pb.Empty(), self.deadlines.get_state)
+        except RobotServerError as exc:
+            if exc.cause == "rpc" and "UNIMPLEMENTED" in str(exc):
+                return None
+            raise
+        if not reply.success:
+            raise self._rejected("GetArguments", call)
+        return reply
 
     def close(self) -> None:
         self._channel.close()

@@ -24,7 +24,7 @@ _sym_db = _symbol_database.Default()
 
 
 
-DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x12robot_server.proto\x12\x0crobot_server\"\x1a\n\x07Success\x12\x0f\n\x07success\x18\x01 \x01(\x08\"\x07\n\x05\x45mpty\")\n\x06\x41\x63tion\x12\x0e\n\x06\x61\x63tion\x18\x01 \x03(\x02\x12\x0f\n\x07success\x18\x02 \x01(\x08\"\xf4\x02\n\x05State\x12\r\n\x05state\x18\x01 \x03(\x02\x12:\n\x0c\x66loat_params\x18\x02 \x03(\x0b\x32$.robot_server.State.FloatParamsEntry\x12<\n\rstring_params\x18\x03 \x03(\x0b\x32%.robot_server.State.StringParamsEntry\x12\x36\n\nstate_dict\x18\x04 \x03(\x0b\x32\".robot_server.State.StateDictEntry\x12\x0f\n\x07success\x18\x05 \x01(\x08\x1a\x32\n\x10\x46loatParamsEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\x02:\x02\x38\x01\x1a\x33\n\x11StringParamsEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\t:\x02\x38\x01\x1a\x30\n\x0eStateDictEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\x02:\x02\x38\x01\x32\xff\x01\n\x0bRobotServer\x12\x36\n\x08GetState\x12\x13.robot_server.Empty\x1a\x13.robot_server.State\"\x00\x12\x38\n\x08SetState\x12\x13.robot_server.State\x1a\x15.robot_server.Success\"\x00\x12;\n\nSendAction\x12\x14.robot_server.Action\x1a\x15.robot_server.Success\"\x00\x12\x41\n\x12SendActionGetState\x12\x14.robot_server.Action\x1a\x13.robot_server.State\"\x00\x62\x06proto3')
+DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x12robot_server.proto\x12\x0crobot_server\"]\n\tArguments\x12\x19\n\x11\x61\x63tion_cycle_rate\x18\x01 \x01(\x02\x12\x0f\n\x07rs_mode\x18\x02 \x01(\t\x12\x13\n\x0b\x61\x63tion_mode\x18\x03 \x01(\t\x12\x0f\n\x07success\x18\x04 \x01(\x08\"\x1a\n\x07Success\x12\x0f\n\x07success\x18\x01 \x01(\x08\"\x07\n\x05\x45mpty\")\n\x06\x41\x63tion\x12\x0e\n\x06\x61\x63tion\x18\x01 \x03(\x02\x12\x0f\n\x07success\x18\x02 \x01(\x08\"\xf4\x02\n\x05State\x12\r\n\x05state\x18\x01 \x03(\x02\x12:\n\x0c\x66loat_params\x18\x02 \x03(\x0b\x32$.robot_server.State.FloatParamsEntry\x12<\n\rstring_params\x18\x03 \x03(\x0b\x32%.robot_server.State.StringParamsEntry\x12\x36\n\nstate_dict\x18\x04 \x03(\x0b\x32\".robot_server.State.StateDictEntry\x12\x0f\n\x07success\x18\x05 \x01(\x08\x1a\x32\n\x10\x46loatParamsEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\x02:\x02\x38\x01\x1a\x33\n\x11StringParamsEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\t:\x02\x38\x01\x1a\x30\n\x0eStateDictEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\x02:\x02\x38\x01\x32\xbf\x02\n\x0bRobotServer\x12\x36\n\x08GetState\x12\x13.robot_server.Empty\x1a\x13.robot_server.State\"\x00\x12\x38\n\x08SetState\x12\x13.robot_server.State\x1a\x15.robot_server.Success\"\x00\x12;\n\nSendAction\x12\x14.robot_server.Action\x1a\x15.robot_server.Success\"\x00\x12\x41\n\x12SendActionGetState\x12\x14.robot_server.Action\x1a\x13.robot_server.State\"\x00\x12>\n\x0cGetArguments\x12\x13.robot_server.Empty\x1a\x17.robot_server.Arguments\"\x00\x62\x06proto3')
 
 _globals = globals()
 _builder.BuildMessageAndEnumDescriptors(DESCRIPTOR, _globals)
@@ -37,20 +37,22 @@ if not _descriptor._USE_C_DESCRIPTORS:
   _globals['_STATE_STRINGPARAMSENTRY']._serialized_options = b'8\001'
   _globals['_STATE_STATEDICTENTRY']._loaded_options = None
   _globals['_STATE_STATEDICTENTRY']._serialized_options = b'8\001'
-  _globals['_SUCCESS']._serialized_start=36
-  _globals['_SUCCESS']._serialized_end=62
-  _globals['_EMPTY']._serialized_start=64
-  _globals['_EMPTY']._serialized_end=71
-  _globals['_ACTION']._serialized_start=73
-  _globals['_ACTION']._serialized_end=114
-  _globals['_STATE']._serialized_start=117
-  _globals['_STATE']._serialized_end=489
-  _globals['_STATE_FLOATPARAMSENTRY']._serialized_start=336
-  _globals['_STATE_FLOATPARAMSENTRY']._serialized_end=386
-  _globals['_STATE_STRINGPARAMSENTRY']._serialized_start=388
-  _globals['_STATE_STRINGPARAMSENTRY']._serialized_end=439
-  _globals['_STATE_STATEDICTENTRY']._serialized_start=441
-  _globals['_STATE_STATEDICTENTRY']._serialized_end=489
-  _globals['_ROBOTSERVER']._serialized_start=492
-  _globals['_ROBOTSERVER']._serialized_end=747
+  _globals['_ARGUMENTS']._serialized_start=36
+  _globals['_ARGUMENTS']._serialized_end=129
+  _globals['_SUCCESS']._serialized_start=131
+  _globals['_SUCCESS']._serialized_end=157
+  _globals['_EMPTY']._serialized_start=159
+  _globals['_EMPTY']._serialized_end=166
+  _globals['_ACTION']._serialized_start=168
+  _globals['_ACTION']._serialized_end=209
+  _globals['_STATE']._serialized_start=212
+  _globals['_STATE']._serialized_end=584
+  _globals['_STATE_FLOATPARAMSENTRY']._serialized_start=431
+  _globals['_STATE_FLOATPARAMSENTRY']._serialized_end=481
+  _globals['_STATE_STRINGPARAMSENTRY']._serialized_start=483
+  _globals['_STATE_STRINGPARAMSENTRY']._serialized_end=534
+  _globals['_STATE_STATEDICTENTRY']._serialized_start=536
+  _globals['_STATE_STATEDICTENTRY']._serialized_end=584
+  _globals['_ROBOTSERVER']._serialized_start=587
+  _globals['_ROBOTSERVER']._serialized_end=906
 # @@protoc_insertion_point(module_scope)

@@ -54,6 +54,11 @@ class RobotServerStub:
                 request_serializer=robot__server__pb2.Action.SerializeToString,
                 response_deserializer=robot__server__pb2.State.FromString,
                 _registered_method=True)
+        self.GetArguments = channel.unary_unary(
+                '/robot_server.RobotServer/GetArguments',
+                request_serializer=robot__server__pb2.Empty.SerializeToString,
+                response_deserializer=robot__server__pb2.Arguments.FromString,
+                _registered_method=True)
 
 
 class RobotServerServicer:
@@ -83,6 +88,12 @@ class RobotServerServicer:
         context.set_details('Method not implemented!')
         raise NotImplementedError('Method not implemented!')
 
+    def GetArguments(self, request, context):
+        """Missing associated documentation comment in .proto file."""
+        context.set_code(grpc.StatusCode.UNIMPLEMENTED)
+        context.set_details('Method not implemented!')
+        raise NotImplementedError('Method not implemented!')
+
 
 def add_RobotServerServicer_to_server(servicer, server):
     rpc_method_handlers = {
@@ -105,6 +116,11 @@ def add_RobotServerServicer_to_server(servicer, server):
                     servicer.SendActionGetState,
                     request_deserializer=robot__server__pb2.Action.FromString,
                     response_serializer=robot__server__pb2.State.SerializeToString,
+            ),
+            'GetArguments': grpc.unary_unary_rpc_method_handler(
+                    servicer.GetArguments,
+                    request_deserializer=robot__server__pb2.Empty.FromString,
+                    response_serializer=robot__server__pb2.Arguments.SerializeToString,
             ),
     }
     generic_handler = grpc.method_handlers_generic_handler(
@@ -215,6 +231,33 @@ class RobotServer:
             '/robot_server.RobotServer/SendActionGetState',
             robot__server__pb2.Action.SerializeToString,
             robot__server__pb2.State.FromString,
+            options,
+            channel_credentials,
+            insecure,
+            call_credentials,
+            compression,
+            wait_for_ready,
+            timeout,
+            metadata,
+            _registered_method=True)
+
+    @staticmethod
+    def GetArguments(request,
+            target,
+            options=(),
+            channel_credentials=None,
+            call_credentials=None,
+            insecure=False,
+            compression=None,
+            wait_for_ready=None,
+            timeout=None,
+            metadata=None):
+        return grpc.experimental.unary_unary(
+            request,
+            target,
+            '/robot_server.RobotServer/GetArguments',
+            robot__server__pb2.Empty.SerializeToString,
+            robot__server__pb2.Arguments.FromString,
             options,
             channel_credentials,
             insecure,

@@ -57,6 +57,18 @@ class StateSnapshot:
     """Named values (UR arms); empty for robots whose protocol has none (MiR100)."""
 
 
+@dataclass(frozen=True)
+class RobotArguments:
+    """What GetArguments reports (robo-gym-server-modules' master ``Arguments``)."""
+
+    action_cycle_rate: float
+    """Actions per second the server runs (Hz)."""
+    rs_mode: str = ""
+    """The ``rs_mode`` launch argument, "" for a robot without one (the MiR100)."""
+    action_mode: str = ""
+    """The ``action_mode`` launch argument (``abs_pos``, ``delta_pos`` ...), "" where none."""
+
+
 class SimRobot(ABC):
     """A robot and its scene, stepped in simulated time by the robot server."""
 
@@ -98,6 +110,16 @@ class SimRobot(ABC):
     @abstractmethod
     def compose(self, groups: Mapping[str, np.ndarray]) -> StateSnapshot:
         """Build the robo-gym state layout from one consistent set of sensor groups."""
+
+    def arguments(self) -> RobotArguments:
+        """The launch arguments GetArguments reports: the action rate, and the arms' modes (their
+        configs carry ``rs_mode`` and ``action_mode``; a robot without them reports "")."""
+        config = getattr(self, "config", None)
+        return RobotArguments(
+            1.0 / self.handler_config.action_cycle,
+            str(getattr(config, "rs_mode", "")),
+            str(getattr(config, "action_mode", "")),
+        )
 
     def close(self) -> None:  # noqa: B027 - optional hook, default does nothing
         """Release the PyBullet client and any other resources."""

@@ -35,7 +35,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from robogym_ray.errors import ConfigError
-from robogym_ray.robots.base import SimRobot, StateRequest, StateSnapshot
+from robogym_ray.robots.base import RobotArguments, SimRobot, StateRequest, StateSnapshot
 from robogym_ray.robots.card import EmulationHooks, RobotCard
 from robogym_ray.robots.registry import CARDS
 
@@ -145,6 +145,10 @@ class EmulatedRobot(SimRobot):
 
     def compose(self, groups: Mapping[str, np.ndarray]) -> StateSnapshot:
         return self.inner.compose(groups)
+
+    def arguments(self) -> RobotArguments:
+        """The robot's own (``self.config`` is the emulation's, which has no modes)."""
+        return self.inner.arguments()
 
     def close(self) -> None:
         self.inner.close()

@@ -27,7 +27,7 @@ from robogym_ray.config import check_port
 from robogym_ray.errors import BindError, InvalidActionError, RoboGymRayError
 from robogym_ray.protocol import robot_server_pb2 as pb
 from robogym_ray.protocol import robot_server_pb2_grpc as pb_grpc
-from robogym_ray.robots.base import SimRobot, StateRequest, StateSnapshot
+from robogym_ray.robots.base import RobotArguments, SimRobot, StateRequest, StateSnapshot
 from robogym_ray.robots.command_handler import CommandHandler
 from robogym_ray.robots.ports import check_port_free, grpc_server, listen
 from robogym_ray.robots.registry import make_robot
@@ -104,6 +104,10 @@ class RobotServerCore:
         self.send_action(action)
         return self.get_state()
 
+    def get_arguments(self) -> RobotArguments:
+        """What the robot was launched with (GetArguments); a pure read."""
+        return self.robot.arguments()
+
     def close(self) -> None:
         self._stop.set()
         if self._loop is not None:
@@ -164,6 +168,15 @@ def snapshot_to_msg(snapshot: StateSnapshot) -> pb.State:
     return msg
 
 
+def arguments_to_msg(args: RobotArguments) -> pb.Arguments:
+    return pb.Arguments(
+        action_cycle_rate=args.action_cycle_rate,
+        rs_mode=args.rs_mode,
+        action_mode=args.action_mode,
+        success=True,
+    )
+
+
 def msg_to_request(msg: pb.State) -> StateRequest:
     return StateRequest(
         state=np.asarray(msg.state, dtype=np.float64),
@@ -206,6 +219,13 @@ class RobotServerServicer(pb_grpc.RobotServerServicer):
             return snapshot_to_msg(self.core.send_action_get_state(request.action))
         except Exception as exc:  # noqa: BLE001
             return self._fail_state(context, "SendActionGetState", exc)
+
+    def GetArguments(self, request: pb.Empty, context: grpc.ServicerContext) -> pb.Arguments:  # noqa: N802
+        try:
+            return arguments_to_msg(self.core.get_arguments())
+        except Exception as exc:  # noqa: BLE001
+            self._report(context, "GetArguments", exc)
+            return pb.Arguments(success=False)
 
     def _fail_state(self, context: grpc.ServicerContext, rpc: str, exc: Exception) -> pb.State:
         message = self._report(context, rpc, exc)
