@@ -15,10 +15,11 @@ from __future__ import annotations
 from typing import Any
 
 import gymnasium as gym
-from gymnasium.envs.registration import load_env_creator
+from gymnasium.envs.registration import EnvSpec, load_env_creator
 
 from robogym_ray.envs.vector import vector_entry_point
 from robogym_ray.errors import ConfigError
+from robogym_ray.text import did_you_mean, quote, reason
 
 _MIR = "robogym_ray.envs.mir100_tasks:"
 _MIRS = "robogym_ray.envs.mir100_sectors:"
@@ -27,6 +28,7 @@ _URA = "robogym_ray.envs.ur_avoidance:"
 _PANDA = "robogym_ray.envs.panda_tasks:"
 _URM = "robogym_ray.envs.ur_modular:"
 _PANDAM = "robogym_ray.envs.panda_modular:"
+_DEPLOY = "robogym_ray.envs.isaac_deploy_reach:"
 
 RobotVariant = tuple[str, dict[str, Any]]
 """(robot as spelled in the id, env kwargs that pick it)."""
@@ -65,6 +67,8 @@ TASKS: tuple[tuple[str, str, tuple[RobotVariant, ...]], ...] = (
     # robo-gym 2.1.0's Isaac Lab reach envs (25 obs / 6 actions and 32 / 7).
     ("IsaacReach", _URM + "IsaacReachUR", _ur("UR10")),
     ("IsaacReach", _PANDAM + "IsaacReachPanda", (("Panda", {}),)),
+    # Isaac Lab 3's Isaac-Deploy-Reach-UR10e-v0 (19 obs / 6 actions, 60 Hz).
+    ("IsaacDeployReach", _DEPLOY + "IsaacDeployReachUR", _ur("UR10e")),
 )
 NONDETERMINISTIC = frozenset({"AvoidanceRaad2022"})
 """Tasks whose reset is not a function of the env seed alone: the sphere's spline is drawn by the
@@ -116,7 +120,24 @@ def variant_id(env_id: str, variant: str) -> str:
         for suffix in ("Sim-v0", "Rob-v0"):
             if env_id.endswith(suffix):
                 return env_id[: -len(suffix)] + variant.capitalize() + "-v0"
-    raise ConfigError(f"{env_id} is not a RoboGymRay/<Task><Robot><Sim|Rob>-v0 id")
+    hint = did_you_mean(env_id, register_all()) if isinstance(env_id, str) else ""
+    raise ConfigError(f"{quote(env_id)} is not a RoboGymRay/<Task><Robot><Sim|Rob>-v0 id{hint}")
+
+
+def env_spec(env_id: str) -> EnvSpec:
+    """The registered spec of ``env_id``.
+
+    Raises:
+        ConfigError: ``env_id`` is not registered, naming the closest id that is (gymnasium's
+            own hint misses a dropped namespace or version, and sees one namespace only).
+    """
+    register_all()
+    try:
+        return gym.spec(env_id)
+    except gym.error.Error as err:
+        hint = did_you_mean(env_id, gym.registry)
+        why = "" if hint else f": {reason(str(err))}"
+        raise ConfigError(f"unknown env id {quote(env_id)}{hint}{why}") from None
 
 
 def env_robot(env_id: str) -> str:
@@ -126,11 +147,7 @@ def env_robot(env_id: str) -> str:
     Raises:
         ConfigError: ``env_id`` is not registered.
     """
-    register_all()
-    try:
-        spec = gym.spec(env_id)
-    except gym.error.Error as err:
-        raise ConfigError(f"unknown env id {env_id!r}: {err}") from None
+    spec = env_spec(env_id)
     cls = spec.entry_point if callable(spec.entry_point) else load_env_creator(spec.entry_point)
     # A Rob env with a placeholder address builds no server and opens no connection.
     env = cls(**{**spec.kwargs, "real_robot": True, "rs_address": "127.0.0.1:1"})

@@ -13,7 +13,8 @@ from typing import Any, ClassVar
 from robogym_ray.envs.isaac_reach import WORLD, IsaacReachTask
 from robogym_ray.envs.modular import ModularArmTask, PoseTask
 from robogym_ray.envs.ur_common import JOINT_MAX, URTask
-from robogym_ray.robots.ur.geometry import BASE_HEIGHT_OPTION
+from robogym_ray.io_descriptors import ActionTermSpec, IOContract, ObsTerm
+from robogym_ray.robots.ur.geometry import BASE_HEIGHT_OPTION, JOINT_NAMES
 
 ROBO_GYM_JOINTS = ("shoulder_pan", "shoulder_lift", "elbow_joint", "wrist_1", "wrist_2", "wrist_3")
 """robo-gym 2.1.0's UR joint names (``ur_parameters/*.yaml``), env order: ``fix_<name>``."""
@@ -166,6 +167,18 @@ class IsaacReachUR(IsaacReachTask, UR2Arm):
 
     def __init__(self, *, ur_model: str = "ur10", **kwargs: Any) -> None:
         super().__init__(ur_model=ur_model, **kwargs)
+
+    def isaac_io(self) -> IOContract:
+        """``Isaac-Reach-UR10-v0``'s terms (``JointPositionAction`` with the default offset)."""
+        names, default = JOINT_NAMES, tuple(float(q) for q in self.joint_position)
+        observations = (
+            ObsTerm("joint_pos_rel", 6, names, default),
+            ObsTerm("joint_vel_rel", 6, names),
+            ObsTerm("generated_commands", 7),
+            ObsTerm("last_action", 6),
+        )
+        action = ActionTermSpec("JointPositionAction", names, self.scale, default)
+        return IOContract(observations, action, names, default, 1.0 / self.action_rate)
 
     def server_spec(self) -> tuple[str, str | None, dict[str, str]]:
         robot, _, options = super().server_spec()

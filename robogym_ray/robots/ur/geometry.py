@@ -111,13 +111,16 @@ UR_MODELS: dict[str, URModel] = {
                 _V5, 0.75, 0.2, 0.06, 0.045, 0.042, _M5),
         URModel("ur10", 0.1273, -0.612, -0.5723, 0.163941, 0.1157, 0.0922,
                 _V10, 1.3, 0.3, 0.075, 0.055, 0.05, _M10),
-        URModel("ur10e", 0.181, -0.613, -0.571, 0.174, 0.120, 0.117,
+        URModel("ur10e", 0.1807, -0.6127, -0.57155, 0.17415, 0.11985, 0.11655,
                 _V10, 1.3, 0.3, 0.075, 0.055, 0.05, _M10),
         URModel("ur16e", 0.1807, -0.4784, -0.36, 0.17415, 0.11985, 0.11655,
                 _V10, 0.8, 0.3, 0.075, 0.055, 0.05, _M16),
     )
 }  # fmt: skip
-"""All seven models by name (DH of spec e.2, limits, Vabs, workspace radii, sizes)."""
+"""All seven models by name (DH of spec e.2, limits, Vabs, workspace radii, sizes). The UR10e's
+DH is Universal Robots' published one (as in ur_description's ``default_kinematics.yaml`` and
+Isaac Lab's UR10e, issue 43); robo-gym's fork rounds it to the millimetre (spec e.2: 0.181,
+-0.613, -0.571, 0.174, 0.120, 0.117), at most 0.7 mm from these."""
 
 
 # -- kinematics -------------------------------------------------------------------------------
@@ -166,8 +169,10 @@ TOOL1_RPY = (0.0, -1.5707, 3.1415)
 """tool0 -> tool1, IsaacLab's end-effector frame: ur_robot_server.launch (robot servers 2.1.0)
 publishes it as a static transform ``0 0 0 3.1415 -1.5707 0 tool0 tool1`` (x y z yaw pitch
 roll). The truncated angles are kept: they are what the ROS server reports."""
-EE_FRAMES: tuple[str, ...] = ("tool0", "tool1")
-"""Frames the ``ee_frame`` launch argument may name, the launch file's default first."""
+EE_FRAMES: tuple[str, ...] = ("tool0", "tool1", "wrist_3_link")
+"""Frames the ``ee_frame`` launch argument may name, the launch file's default first;
+``wrist_3_link`` is Isaac Lab's deploy-reach end effector (a link of the tf tree, so the ROS
+server can report it too)."""
 
 
 def _quat_xyzw(r: np.ndarray) -> np.ndarray:

@@ -1,0 +1,261 @@
+"""Isaac Lab 3's Sim2Real reach task on a UR10e, ``Isaac-Deploy-Reach-UR10e-v0``, without ROS.
+
+Read from isaac-sim/IsaacLab (``isaaclab_tasks/manager_based/manipulation/deploy/reach/``:
+``reach_env_cfg.py``, ``config/ur_10e/joint_pos_env_cfg.py`` and ``ros_inference_env_cfg.py``;
+``isaaclab_assets/robots/universal_robots.py``; the ``mdp/rewards.py`` beside them). It differs
+from ``Isaac-Reach-UR10-v0`` (``isaac_reach.py``) in every part of its layout: absolute joint
+positions, no last action, a relative action from the *measured* joints, 60 Hz, 12-s episodes
+with a new pose command every 4 s, the command in UR's ``base`` frame for ``wrist_3_link``, and
+a keypoint reward. Target sampling is ``pose_targets``'s box draw (Isaac Lab's
+``UniformPoseCommand``: ``quat_from_euler_xyz``, which scipy's "xyz" reproduces sign and all).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any, ClassVar
+
+import numpy as np
+from gymnasium import spaces
+from scipy.spatial.transform import Rotation
+
+from robogym_ray.envs.base import StepInfo
+from robogym_ray.envs.frames import frame_quat, frame_xyz
+from robogym_ray.envs.modular import PoseTask
+from robogym_ray.envs.pose_targets import sample_target_pose
+from robogym_ray.envs.ur_common import URTask
+from robogym_ray.envs.ur_modular import UR2Arm
+from robogym_ray.errors import ConfigError
+from robogym_ray.io_descriptors import ActionTermSpec, IOContract, ObsTerm
+from robogym_ray.protocol import robot_server_pb2 as pb
+from robogym_ray.protocol.client import RobotServerClient
+from robogym_ray.robots.ur.controller import MIN_DURATION
+from robogym_ray.robots.ur.geometry import JOINT_NAMES
+
+PI = math.pi
+KEYPOINTS = np.array(
+    [[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [-1, 0, 0], [0, -1, 0], [0, 0, -1]],
+    dtype=np.float64,
+)
+"""Isaac Lab's ``get_keypoint_offsets_full_6d`` with the centre: the frame's origin and its
+axes' ends on both sides, scaled by ``keypoint_scale``."""
+KEYPOINT_SCALE = 0.45
+TRACKING_WEIGHT, EXP_WEIGHT, ACTION_WEIGHT = -1.5, 1.5, -0.005
+EXP_COEFFS = ((50.0, 1e-4), (300.0, 1e-4), (5000.0, 1e-4))
+"""``keypoint_command_error_exp``'s ``(a, b)``: ``1 / (exp(a d) + b + exp(-a d))`` each."""
+QUAT_ORDERS = ("xyzw", "wxyz")
+
+
+def keypoint_error(
+    pos: np.ndarray,
+    quat: np.ndarray,
+    goal_pos: np.ndarray,
+    goal_quat: np.ndarray,
+    scale: float = KEYPOINT_SCALE,
+) -> float:
+    """Mean distance (m) of the seven keypoints of two poses (quaternions x-y-z-w)."""
+    offsets = scale * KEYPOINTS
+    here = np.asarray(pos) + Rotation.from_quat(quat).apply(offsets)
+    there = np.asarray(goal_pos) + Rotation.from_quat(goal_quat).apply(offsets)
+    return float(np.linalg.norm(here - there, axis=1).mean())
+
+
+def exp_kernel(d: float, a: float, b: float) -> float:
+    """``1 / (exp(a d) + b + exp(-a d))``, written so that a large ``a d`` cannot overflow."""
+    e = math.exp(-a * abs(d))
+    return e / (1.0 + b * e + e * e)
+
+
+class IsaacDeployReachUR(PoseTask, UR2Arm):
+    """Isaac Lab 3's ``Isaac-Deploy-Reach-UR10e-v0``: track a pose command with ``wrist_3_link``.
+
+    ## Action space
+    ``Box((6,), float32)``: joint offsets from the **measured** joints, target = measured +
+    0.0625 x action (rad; order shoulder_pan ... wrist_3; Isaac Lab's
+    ``RelativeJointPositionAction``, ``use_zero_offset``), clipped into the joint limits. The
+    UR server (as robo-gym's ROS bridge) moves to a target along a trajectory of at least 0.5 s,
+    so an offset is a joint speed of offset / 0.5 s: bounds +-``Vmax_j x 0.5 s / 0.0625``
+    (16.76 for the pan and lift joints, 25.13 for the others) span the speeds up to the UR10e's
+    limits (120 and 180 deg/s); an action beyond them asks for more than the arm can do and is
+    clipped to them. 60 actions per second (Isaac Lab: physics 120 Hz, decimation 2).
+
+    ## Observation space
+    ``Box((19,), float32)``; nothing scaled, clipped or noisy.
+
+    | index | meaning | bounds |
+    |---|---|---|
+    | 0-5 | joint positions (rad, absolute) | limits +- 0.1 x range |
+    | 6-11 | joint velocities (rad/s) | free |
+    | 12-14 | the command's position (m, UR's ``base`` frame) | free |
+    | 15-18 | its quaternion, x-y-z-w (``isaac_quat_order="wxyz"``: w first) | +-1 |
+
+    ## Reward
+    Isaac Lab's, per step, times its step dt (1/60 s): ``-1.5 d + 1.5 sum_k 1 / (exp(a_k d) +
+    b_k + exp(-a_k d)) - 0.005 |a_t - a_t-1|^2 - 0.005 |a_t|^2`` with ``d`` the mean distance of
+    seven keypoints (origin and +-0.45 m along each axis) of ``wrist_3_link`` and the command,
+    ``(a_k, b_k)`` = (50, 1e-4), (300, 1e-4), (5000, 1e-4); ``a`` the raw actions. ``info``
+    carries ``dist_coord`` (m) and ``dist_rot`` (rad) of ``wrist_3_link`` to the command of the
+    step; at the end of each command window also ``window_position_error`` and
+    ``window_rotation_error`` (the same two).
+
+    ## Episode end
+    Only the time limit: truncated after 720 steps (12 s) with ``max_steps_exceeded``, or
+    ``server_restarted``. No collision ends an episode (Isaac Lab's task has none).
+
+    ## Reset and commands
+    Joints ``(pi, -pi/2, pi/2, -pi/2, -pi/2, 0)`` plus U(+-0.125) rad each. A new command every
+    240 steps (``resampling_time`` 4 s), after the step's reward, before its observation:
+    position U((0.6375, 1.1375), (-0.35, -0.1), (0.1, 0.3)) m in ``base`` (``base_link`` turned
+    pi about z), rotation from roll U(pi +- pi/6), pitch U(+-pi/6), yaw U(-pi/2 +- 2 pi/3).
+    Server: the UR10e, ``reference_frame:=base``, ``ee_frame:=wrist_3_link``, 60 Hz, full speed
+    (``max_velocity_scale_factor`` 1.0), ``rs_mode:=only_robot`` (no target object).
+
+    ## Arguments
+    ``isaac_quat_order`` ("xyzw", Isaac Lab 3.x; "wxyz", Isaac Lab 2.x and Isaac ROS),
+    ``isaac_scale`` (0.0625), ``resampling_time`` (s), ``ur_model`` (ur10e), those of
+    ``pose_targets.PoseTaskConfig`` and ``ModularArmTask`` but ``fix_<joint>``, and
+    ``RobotServerEnv``'s.
+    """
+
+    metadata: ClassVar[dict[str, Any]] = {**URTask.metadata, "render_fps": 60}
+    rs_mode = "only_robot"
+    default_joints = (PI, -PI / 2, PI / 2, -PI / 2, -PI / 2, 0.0)
+    fixed_by_default = ()
+    fixable = False
+    max_episode_steps = 720
+    action_rate = 60.0
+    velocity_scale = 1.0
+    pose_defaults: ClassVar[dict[str, Any]] = {
+        "ee_target_volume_bounding_box": True,
+        "ee_rotation_pos_x_range": (0.8875 - 0.25, 0.8875 + 0.25),
+        "ee_rotation_pos_y_range": (-0.225 - 0.125, -0.225 + 0.125),
+        "ee_rotation_pos_z_range": (0.2 - 0.1, 0.2 + 0.1),
+        "ee_rotation_roll_range": (PI - PI / 6, PI + PI / 6),
+        "ee_rotation_pitch_range": (-PI / 6, PI / 6),
+        "ee_rotation_yaw_range": (-PI / 2 - 2 * PI / 3, -PI / 2 + 2 * PI / 3),
+        "ee_rotation_matters": True,
+        "randomize_start": True,
+        "random_joint_offset": (0.125,) * 6,
+    }
+
+    def __init__(
+        self,
+        *,
+        ur_model: str = "ur10e",
+        isaac_quat_order: str = "xyzw",
+        isaac_scale: float = 0.0625,
+        resampling_time: float = 4.0,
+        **kwargs: Any,
+    ) -> None:
+        if isaac_quat_order not in QUAT_ORDERS:
+            raise ConfigError(
+                f"isaac_quat_order must be one of {QUAT_ORDERS}, got {isaac_quat_order!r}"
+            )
+        self.quat_order = isaac_quat_order
+        self.scale = float(isaac_scale)
+        if not (math.isfinite(self.scale) and self.scale > 0):
+            raise ConfigError(f"isaac_scale must be a positive number, got {isaac_scale!r}")
+        self.resampling_time = float(resampling_time)
+        self.prev_action = np.zeros(6)
+        self.scored_pose = np.zeros(7)
+        """The command in force during the last step (the observation may show the next)."""
+        super().__init__(ur_model=ur_model, **kwargs)
+        steps = self.resampling_time * self.action_rate
+        if not (math.isfinite(steps) and steps >= 1):
+            raise ConfigError(
+                f"resampling_time must be at least one step (1/{self.action_rate:g}"
+                f" s), got {resampling_time!r}"
+            )
+        self.window = round(steps)
+
+    # -- spaces ----------------------------------------------------------------------------
+    def _action_space(self) -> spaces.Box:
+        # The UR server turns a target into a trajectory of at least MIN_DURATION (robo-gym's
+        # ROS bridge does), so an offset moves the joint at offset / MIN_DURATION: these bounds
+        # span the joint speeds up to the UR10e's limits, and no further.
+        reach = np.asarray(self.model.max_velocity) * MIN_DURATION / self.scale
+        return spaces.Box(-reach.astype(np.float32), reach.astype(np.float32), dtype=np.float32)
+
+    def _obs_bounds(self) -> tuple[list[float], list[float]]:
+        widen = self.tolerance * (self.upper - self.lower)
+        low = [*(self.lower - widen), *[-np.inf] * 6, *[-np.inf] * 3, *[-1.0] * 4]
+        high = [*(self.upper + widen), *[np.inf] * 6, *[np.inf] * 3, *[1.0] * 4]
+        return low, high
+
+    def isaac_io(self) -> IOContract:
+        """The observation and action terms an Isaac Lab policy of this task was trained with."""
+        names = JOINT_NAMES
+        return IOContract(
+            observations=(
+                ObsTerm("joint_pos", 6, names),
+                ObsTerm("joint_vel", 6, names),
+                ObsTerm("generated_commands", 7),
+            ),
+            action=ActionTermSpec("RelativeJointPositionAction", names, self.scale, (0.0,) * 6),
+            joint_names=names,
+            default_joint_pos=tuple(self.joint_position),
+            dt=1.0 / self.action_rate,
+        )
+
+    # -- actions ---------------------------------------------------------------------------
+    def joint_targets(self, action: np.ndarray) -> np.ndarray:
+        """``measured + isaac_scale * action`` within the limits (rad, env order)."""
+        measured = self.start_joints if self._last_msg is None else self.joints(self._last_msg)
+        target = measured + self.scale * np.asarray(action, dtype=np.float64)
+        return np.clip(target, self.lower, self.upper)
+
+    def _send(self, client: RobotServerClient, action: np.ndarray) -> pb.State:
+        self.prev_action = self.last_action.copy()
+        msg = super()._send(client, action)
+        self.scored_pose = self.target_pose.copy()
+        step = self.elapsed_steps + 1
+        if step % self.window == 0 and step < self.max_episode_steps:
+            # Isaac Lab resamples after the step's reward, before its observation.
+            self._new_command()
+        return msg
+
+    # -- episode ---------------------------------------------------------------------------
+    def _prepare(self, options: Mapping[str, Any]) -> tuple[dict[str, str], dict[str, float]]:
+        super()._prepare(options)  # the first command (or the ee_target_pose option)
+        self.prev_action = np.zeros(6)
+        self.scored_pose = self.target_pose.copy()
+        return {}, {}  # only_robot: the server has no target object to place
+
+    def _new_command(self) -> None:
+        self.target_pose = sample_target_pose(self.np_random, self.pose_cfg, self.workspace())
+        self.target = self.target_pose[:3].copy()
+
+    def _to_obs(self, msg: pb.State) -> np.ndarray:
+        x, y, z, qx, qy, qz, qw = self.target_pose
+        quat = [qx, qy, qz, qw] if self.quat_order == "xyzw" else [qw, qx, qy, qz]
+        parts = [self.joints(msg), self.velocities(msg), [x, y, z], quat]
+        return np.concatenate(parts).astype(np.float32)
+
+    def _evaluate(
+        self, msg: pb.State, obs: np.ndarray, action: np.ndarray
+    ) -> tuple[float, str | None, StepInfo]:
+        sd, goal = msg.state_dict, self.scored_pose
+        pos, quat = frame_xyz(sd, "ee"), frame_quat(sd, "ee")
+        d = keypoint_error(pos, quat, goal[:3], goal[3:])
+        a = np.asarray(action, dtype=np.float64)
+        reward = TRACKING_WEIGHT * d + EXP_WEIGHT * sum(exp_kernel(d, *c) for c in EXP_COEFFS)
+        reward += ACTION_WEIGHT * (np.sum((a - self.prev_action) ** 2) + np.sum(a**2))
+        position = float(np.linalg.norm(pos - goal[:3]))
+        rotation = float(
+            (Rotation.from_quat(quat) * Rotation.from_quat(goal[3:]).inv()).magnitude()
+        )
+        info: StepInfo = {
+            **self._info(msg),
+            "dist_coord": position,
+            "dist_rot": rotation,
+            "keypoint_error": d,
+        }
+        if self.elapsed_steps % self.window == 0 or self.elapsed_steps >= self.max_episode_steps:
+            info.update(window_position_error=position, window_rotation_error=rotation)
+        return reward / self.action_rate, None, info
+
+    def server_spec(self) -> tuple[str, str | None, dict[str, str]]:
+        robot, scene, options = super().server_spec()
+        options.update(reference_frame="base", ee_frame="wrist_3_link")
+        return robot, scene, options
