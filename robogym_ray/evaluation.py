@@ -72,6 +72,9 @@ class EvaluationConfig:
     isaac_lab: bool = False
     """The policy is an Isaac Lab export (rsl_rl play.py's policy.pt, TorchScript, or
     policy.onnx): raw observations in, raw actions in the env's units out; needs --env-id."""
+    io_descriptors: str | None = None
+    """With --isaac-lab: Isaac Lab 3's IO_descriptors.yaml of the policy, checked against the
+    env before the first action; its action term's scale, offset and clip are applied."""
 
     def __post_init__(self) -> None:
         if self.variant not in ("rob", "sim"):
@@ -82,6 +85,8 @@ class EvaluationConfig:
             raise ConfigError(f"video_episodes must be >= 1, got {self.video_episodes}")
         if self.via_actor and (self.rs_address is None or self.variant != "rob"):
             raise ConfigError("via_actor needs --rs-address and --variant rob")
+        if self.io_descriptors is not None and not self.isaac_lab:
+            raise ConfigError("--io-descriptors describes an Isaac Lab policy: add --isaac-lab")
         if self.isaac_lab and self.env_id is None:
             raise ConfigError("--isaac-lab needs --env-id: an Isaac Lab policy file names no env")
         if self.rs_address is not None:
@@ -245,7 +250,8 @@ def evaluate(policy_path: str | Path, cfg: EvaluationConfig) -> EvaluationResult
     if cfg.isaac_lab:
         from robogym_ray.isaac_lab import IsaacLabPolicy
 
-        policy: Any = IsaacLabPolicy(policy_path)  # read and checked before any env or Ray
+        # read and checked before any env or Ray
+        policy: Any = IsaacLabPolicy(policy_path, cfg.io_descriptors)
         label, env_id, dims = str(policy_path), cfg.env_id, (policy.obs_dim, policy.act_dim)
     else:
         policy = load_policy(policy_path, cfg.online_weights)
@@ -284,7 +290,7 @@ def evaluate(policy_path: str | Path, cfg: EvaluationConfig) -> EvaluationResult
             fps = env.metadata["render_fps"]
             videos = EpisodeVideos(cfg.video, min(cfg.video_episodes, cfg.episodes), fps)
         _check_dims(env, *dims, env_id)
-        if cfg.isaac_lab:  # its raw actions onto [-1, 1] by the env's bounds
+        if cfg.isaac_lab:  # its raw actions onto [-1, 1] by the env's bounds (IO: checked)
             policy = policy.unit_policy(env)
         result = EvaluationResult(env_id, cfg.rs_address, label)
         start = time.perf_counter()

@@ -42,9 +42,16 @@ positioning task name the distance differently."""
 
 
 def greedy_episode(
-    env: Any, policy: Policy, seed: int | None, *, film: bool = False, track: bool = False
+    env: Any,
+    policy: Policy,
+    seed: int | None,
+    *,
+    film: bool = False,
+    track: bool = False,
+    on_step: Callable[[dict[str, Any]], None] | None = None,
 ) -> GreedyEpisode:
-    """Run one episode of ``policy`` on ``env`` from ``env.reset(seed=seed)``."""
+    """Run one episode of ``policy`` on ``env`` from ``env.reset(seed=seed)``; ``on_step`` sees
+    every step's ``info`` (what a task reports mid-episode, e.g. a command window's errors)."""
     low = env.action_space.low.astype(np.float64)
     high = env.action_space.high.astype(np.float64)
     obs, _ = env.reset(seed=seed)
@@ -63,6 +70,8 @@ def greedy_episode(
     while not done:
         action = np.clip(policy(np.asarray(obs, dtype=np.float32)), -1.0, 1.0)
         obs, reward, terminated, truncated, info = env.step(to_env_action(action, low, high))
+        if on_step is not None:
+            on_step(info)
         episode.ret += float(reward)
         episode.length += 1
         done = terminated or truncated

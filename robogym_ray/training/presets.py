@@ -16,6 +16,7 @@ import gymnasium as gym
 from robogym_ray.config import merge_config
 from robogym_ray.errors import ConfigError
 from robogym_ray.learner.config import D4PGConfig
+from robogym_ray.text import did_you_mean
 
 
 @dataclass(frozen=True)
@@ -45,6 +46,7 @@ _PENDULUM = {
 _POSITIONING = {"v_min": -250.0, "v_max": 250.0, "layer_norm": True, "min_replay_size": 500}
 _PANDA_POSITIONING = {**_POSITIONING, "v_min": -5.0, "v_max": 5.0}
 _ISAAC_REACH = {**_POSITIONING, "v_min": -20.0, "v_max": 5.0}
+_DEPLOY_REACH = {**_POSITIONING, "v_min": -6.0, "v_max": 4.0}
 _NAVIGATION = {"v_min": -300.0, "v_max": 450.0, "layer_norm": True, "min_replay_size": 500}
 
 TASKS: dict[str, TaskPreset] = {
@@ -68,6 +70,10 @@ TASKS: dict[str, TaskPreset] = {
     # end the episode; truncation at 600 steps bootstraps, so the worst value is ~-0.167 x 100
     # (gamma 0.99) = -16.7 and the best +2: [-20, 5] leaves a margin (atoms 0.5 apart).
     "isaac-reach-ur10": TaskPreset("RoboGymRay/IsaacReachUR10Sim-v0", _ISAAC_REACH),
+    # Isaac Lab 3's deploy reach (UR10e): its keypoint reward times 1/60 s per step, between
+    # about -0.05 (2 m off) and +0.0375 (on target), never ending but by the time limit, so the
+    # discounted value (gamma 0.99, ~100 steps) lies in about [-5, 3.75]: [-6, 4] (atoms 0.2).
+    "isaac-deploy-reach-ur10e": TaskPreset("RoboGymRay/IsaacDeployReachUR10eSim-v0", _DEPLOY_REACH),
     # Pendulum: the preset proven by benchmarks/pendulum.py (the local trainer applies it too).
     "pendulum": TaskPreset("Pendulum-v1", _PENDULUM),
 }
@@ -81,10 +87,11 @@ def resolve_task(task: str) -> TaskPreset:
 
     if task in gym.registry:
         return TaskPreset(task)
-    known = sorted(k for k in gym.registry if k.startswith("RoboGymRay/"))
+    # The example is a preset's id: the alphabetically first ones are obscure variants.
     raise ConfigError(
-        f"unknown task {task!r}: use a short name ({', '.join(TASKS)}) or a registered "
-        f"Gymnasium id, e.g. {', '.join(known[:4]) or 'Pendulum-v1'}"
+        f"unknown task {task!r}{did_you_mean(task, [*TASKS, *gym.registry])}: use a short name "
+        f"({', '.join(TASKS)}) or a registered Gymnasium id, e.g. {TASKS['navigation'].env_id} "
+        "(robogym_ray.envs.ENV_IDS lists ours)"
     )
 
 

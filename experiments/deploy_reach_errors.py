@@ -1,0 +1,119 @@
+"""Tracking errors of a policy on Isaac Lab's deploy reach: ``wrist_3_link``'s position and
+rotation error to each pose command at the end of its 4-s window (3 windows per 12-s episode),
+median and 90th percentile over all windows of N episodes (episode i resets with seed + i).
+
+    # a trained run's policy (learner.pt, or an exported policy.pt / policy.onnx with its .json)
+    python experiments/deploy_reach_errors.py \\
+        runs/deploy/isaac-deploy-reach-ur10e/checkpoints/learner.pt --out results/deploy-reach-d4pg
+    # the baseline: uniformly random actions over the env's action space
+    python experiments/deploy_reach_errors.py --random --out results/deploy-reach-random
+    # an Isaac Lab export, checked against its IO descriptors first
+    python experiments/deploy_reach_errors.py policy.pt --isaac-lab \\
+        --io-descriptors IO_descriptors.yaml
+
+Writes OUT/errors.json (the summary and every window's errors) and prints the summary as JSON.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+ENV_ID = "RoboGymRay/IsaacDeployReachUR10eSim-v0"
+KEYS = ("window_position_error", "window_rotation_error")
+"""What the env's ``info`` carries at the end of each command window (m, rad)."""
+
+
+def summarize(windows: Sequence[tuple[float, float]]) -> dict[str, Any]:
+    """Median and 90th percentile of the position (m) and rotation (rad) errors."""
+    arr = np.asarray(windows, dtype=np.float64).reshape(-1, 2)
+    out: dict[str, Any] = {"windows": len(arr)}
+    for i, name in enumerate(("position_error_m", "rotation_error_rad")):
+        col = arr[:, i]
+        out[name] = {
+            "median": round(float(np.median(col)), 4) if col.size else None,
+            "p90": round(float(np.percentile(col, 90)), 4) if col.size else None,
+        }
+    return out
+
+
+def window_errors(
+    env: Any, policy: Callable[[np.ndarray], np.ndarray], episodes: int, seed: int
+) -> list[list[tuple[float, float]]]:
+    """Each episode's window-end errors, from the one greedy-episode loop."""
+    from robogym_ray.experience.episodes import greedy_episode
+
+    per_episode = []
+    for i in range(episodes):
+        found: list[tuple[float, float]] = []
+
+        def keep(info: dict[str, Any], found: list[tuple[float, float]] = found) -> None:
+            if KEYS[0] in info:
+                found.append((float(info[KEYS[0]]), float(info[KEYS[1]])))
+
+        greedy_episode(env, policy, seed + i, on_step=keep)
+        per_episode.append(found)
+    return per_episode
+
+
+def load(args: argparse.Namespace, env: Any) -> tuple[Callable[[np.ndarray], np.ndarray], str]:
+    """The policy on the [-1, 1] scale of the greedy loop, and its label."""
+    if args.random:
+        rng = np.random.default_rng(args.seed)
+        return (lambda obs: rng.uniform(-1.0, 1.0, env.action_space.shape)), "random"
+    if args.isaac_lab:
+        from robogym_ray.isaac_lab import IsaacLabPolicy
+
+        return IsaacLabPolicy(args.policy, args.io_descriptors).unit_policy(env), args.policy
+    from robogym_ray.export import load_policy
+
+    return load_policy(args.policy), args.policy
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    import gymnasium as gym
+
+    import robogym_ray  # noqa: F401 - registers the ids
+
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("policy", nargs="?", help="learner.pt, exported policy, or Isaac Lab's.")
+    parser.add_argument("--random", action="store_true", help="Uniformly random actions.")
+    parser.add_argument("--isaac-lab", action="store_true", help="POLICY is an Isaac Lab export.")
+    parser.add_argument("--io-descriptors", default=None, help="Its IO_descriptors.yaml.")
+    parser.add_argument("--env-id", default=ENV_ID, help="The task (default: %(default)s).")
+    parser.add_argument("--episodes", type=int, default=100, help="Episodes (default 100).")
+    parser.add_argument("--seed", type=int, default=1000, help="Episode i resets with seed + i.")
+    parser.add_argument("--max-steps", type=int, default=None, help="Step limit (default 720).")
+    parser.add_argument("--out", default=None, help="Folder for errors.json.")
+    args = parser.parse_args(argv)
+    if args.random == (args.policy is not None):
+        parser.error("give one of POLICY or --random")
+    kwargs = {} if args.max_steps is None else {"max_steps": args.max_steps}
+    env = gym.make(args.env_id, **kwargs)
+    try:
+        policy, label = load(args, env)
+        per_episode = window_errors(env, policy, args.episodes, args.seed)
+    finally:
+        env.close()
+    summary = {
+        "env_id": args.env_id,
+        "policy": label,
+        "episodes": args.episodes,
+        **summarize([w for ep in per_episode for w in ep]),
+    }
+    if args.out:
+        Path(args.out).mkdir(parents=True, exist_ok=True)
+        record = {**summary, "per_episode": per_episode}
+        (Path(args.out) / "errors.json").write_text(json.dumps(record, indent=1))
+    print(json.dumps(summary), flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
