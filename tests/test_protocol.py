@@ -30,6 +30,15 @@ def test_robot_server_schema_matches_robo_gym() -> None:
         "SetState": ("State", "Success"),
         "SendAction": ("Action", "Success"),
         "SendActionGetState": ("Action", "State"),
+        # robo-gym-server-modules' master (after 0.3.0.1): tests/compat/test_get_arguments.py
+        "GetArguments": ("Empty", "Arguments"),
+    }
+    t = rs.Arguments.DESCRIPTOR.fields[0]
+    assert fields(rs.Arguments) == {
+        "action_cycle_rate": (1, t.TYPE_FLOAT),
+        "rs_mode": (2, t.TYPE_STRING),
+        "action_mode": (3, t.TYPE_STRING),
+        "success": (4, t.TYPE_BOOL),
     }
     f = rs.State.DESCRIPTOR.fields_by_name
     assert [
