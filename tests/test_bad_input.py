@@ -169,9 +169,12 @@ def test_train_init_from_with_a_broken_replay(tmp_path: Path, capfd: pytest.Capt
     assert f"cannot read replay {replay_path(source)}" in line
 
 
-def test_a_rerun_checks_its_own_checkpoint(tmp_path: Path, capfd: pytest.CaptureFixture) -> None:
-    """A re-run of --run-name with other network sizes than its checkpoint's (the learner would
-    crash restoring it, after Ray had started)."""
+def test_a_taken_run_name_is_refused_and_resume_checks_its_checkpoint(
+    tmp_path: Path, capfd: pytest.CaptureFixture
+) -> None:
+    """A --run-name that holds a run is refused unless --resume; a resumed run with other
+    network sizes than its checkpoint's is refused too (the learner would crash restoring it,
+    after Ray had started). Both in one line, before anything starts or is written."""
     runs = tmp_path / "runs"
     own = runs / "r" / "checkpoints" / "learner.pt"
     own.parent.mkdir(parents=True)
@@ -180,9 +183,18 @@ def test_a_rerun_checks_its_own_checkpoint(tmp_path: Path, capfd: pytest.Capture
     argv = ["train", "--logdir", str(runs), "--run-name", "r", "--total-steps", "10"]
     assert main([*argv, "--task", "pendulum"]) == 2
     line = capfd.readouterr().err.strip()
-    assert line.startswith(f"error: this run's own checkpoint (a re-run continues from it) {own}")
+    assert line == (
+        f"error: run folder {runs / 'r'} holds a run already: pass --resume to continue it, "
+        "or another --run-name (leave it out for a new name each run)"
+    )
+    assert main([*argv, "--task", "pendulum", "--resume"]) == 2
+    line = capfd.readouterr().err.strip()
+    assert line.startswith(f"error: --resume: the run's checkpoint {own}")
     assert "not a D4PG checkpoint for obs_dim=3" in line and "\n" not in line
     assert sorted(p.name for p in runs.rglob("*")) == ["checkpoints", "learner.pt", "r"]
+    assert main([*argv[:-4], "--run-name", "none", "--task", "pendulum", "--resume"]) == 2
+    line = capfd.readouterr().err.strip()
+    assert line == f"error: --resume: {runs / 'none'} has no checkpoint to continue from"
 
 
 def test_a_good_init_from_passes_the_check(tmp_path: Path) -> None:

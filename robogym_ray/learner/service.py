@@ -12,6 +12,7 @@ import time
 from collections.abc import Iterator
 from contextlib import contextmanager, suppress
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -20,6 +21,7 @@ from robogym_ray.learner.checkpoint import CHECKPOINT_NAME, replay_path
 from robogym_ray.learner.config import D4PGConfig
 from robogym_ray.learner.learner import D4PGLearner
 from robogym_ray.learner.rate_limiter import SamplesPerInsert
+from robogym_ray.storage import RunStorage, node_label
 
 log = logging.getLogger(__name__)
 
@@ -35,12 +37,17 @@ class LearnerService:
         *,
         seed: int = 0,
         checkpoint_dir: str | None = None,
+        storage: RunStorage | None = None,
         checkpoint_every: int = 1000,
         max_steps_per_call: int = 1000,
         replay_snapshot_every_s: float = 0.0,
     ) -> None:
         """Args:
         checkpoint_dir: where ``learner.pt`` lives; restored from on start when present.
+        storage: the run's storage, instead of ``checkpoint_dir``: its ``checkpoints/`` folder
+            (on a path every node reaches, or an object store, staged on this node and
+            uploaded after each checkpoint), so a learner that Ray restarts on another node
+            restores what this one wrote.
         checkpoint_every: learner steps between checkpoints (0 disables).
         replay_snapshot_every_s: seconds between checkpoints that also write the replay, so a
             restarted learner restores it and loses only what came after (0: never).
@@ -49,6 +56,12 @@ class LearnerService:
         """
         self.learner = D4PGLearner(d4pg, obs_dim, act_dim, seed=seed)
         self.config = d4pg
+        self.storage = storage.child("checkpoints") if storage is not None else None
+        if self.storage is not None:
+            checkpoint_dir = str(self.storage.staging(""))
+            for name in (replay_path(CHECKPOINT_NAME).name, CHECKPOINT_NAME):
+                if not self.storage.is_local:  # the staging folder is empty: fetch the latest
+                    self.storage.download(name, Path(checkpoint_dir) / name)
         self.checkpoint_dir = Path(checkpoint_dir) if checkpoint_dir else None
         self.checkpoint_every = checkpoint_every
         self.max_steps_per_call = max_steps_per_call
@@ -138,13 +151,16 @@ class LearnerService:
             elif final or self.replay_snapshot_every_s <= 0:
                 replay_path(path).unlink(missing_ok=True)
             os.replace(tmp, path)
+            if self.storage is not None:  # an object store: the replay first, as renamed above
+                self.storage.publish(replay_path(path), replay_path(path).name, "learner replay")
+                self.storage.publish(path, path.name, "learner checkpoint")
         self._last_checkpoint_step = self.version
-        return str(path)
+        return self.storage.location(path.name) if self.storage is not None else str(path)
 
     def ping(self) -> int:
         return os.getpid()
 
-    def status(self) -> dict[str, int]:
+    def status(self) -> dict[str, Any]:
         """Counters that survive (version) or reveal (restored_from_step) a restart."""
         return {
             "pid": os.getpid(),
@@ -153,6 +169,7 @@ class LearnerService:
             "restored_from_step": self.restored_from_step,
             "total_added": int(self.learner.replay.total_added),
             "restored_replay": self.restored_replay,
+            "node": node_label(),
         }
 
 

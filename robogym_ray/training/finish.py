@@ -15,8 +15,9 @@ from typing import Any
 import ray
 from ray.exceptions import RayTaskError
 
-from robogym_ray.errors import DiskWriteError
-from robogym_ray.learner.checkpoint import CHECKPOINT_NAME, write_bytes
+from robogym_ray.errors import DiskWriteError, RunStoppedError
+from robogym_ray.learner.checkpoint import CHECKPOINT_NAME
+from robogym_ray.storage import node_label
 from robogym_ray.training import stats
 from robogym_ray.training.program import Program
 from robogym_ray.training.stats import RunStats
@@ -38,11 +39,15 @@ def finish(
     logger: Any,
     scalars: Callable[[], dict[str, float]],
     wall: Callable[[], float],
-    failure: DiskWriteError | None = None,
+    failure: RunStoppedError | None = None,
+    stopped_by: str | None = None,
+    learner_status: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Checkpoint (with the replay only under ``save_replay``), write the final scalars and
     the summary; returns the summary. ``failure``: what stopped the run early; it, or one met
-    here, is raised after the summary is written."""
+    here, is raised after the summary is written. ``stopped_by``: the signal that ended the run
+    early (SIGINT, SIGTERM). ``learner_status``: the learner's, when it is not to be asked (a
+    lost learner, killed)."""
     failure = failure or logger.error
     checkpoint = None
     if failure is None:
@@ -52,15 +57,17 @@ def finish(
             failure = disk_error(exc)
             if failure is None:
                 raise
-    learner_status = ray.get(p.learner.status.remote())
+    if learner_status is None:
+        learner_status = ray.get(p.learner.status.remote())
     wall_s = wall()
     final = scalars()
     logger.write(final, run_stats.env_steps)
     logger.close()
     failure = failure or logger.error
-    kept = p.run_dir / "checkpoints" / CHECKPOINT_NAME
-    if checkpoint is None and kept.exists():
-        checkpoint = str(kept)  # the last good one, from before the failure
+    kept = f"checkpoints/{CHECKPOINT_NAME}"
+    if checkpoint is None and p.storage.exists(kept):
+        checkpoint = p.storage.location(kept)  # the last good one, from before the failure
+    ended = "failed" if failure is not None else "stopped" if stopped_by else "completed"
     summary = stats.summary(
         run_stats, final,
         task=p.preset.env_id, wall_s=round(wall_s, 2), checkpoint=checkpoint,
@@ -70,25 +77,31 @@ def finish(
         servers_given_up=p.servers_given_up(),
         learner_restored_from_step=learner_status["restored_from_step"],
         learner_restored_replay=learner_status["restored_replay"],
+        learner_node=learner_status.get("node", ""),
         # Sent but not in the replay: lost with a learner that Ray restarted (what came after
         # its last replay snapshot, and the batch in flight).
         lost_transitions=run_stats.transitions_sent
         - (learner_status["total_added"] - p.first_total_added),
         best_snapshot=None if p.selector is None else p.selector.summary(),
         policy_snapshots=p.snapshots.written,
-        server_nodes=p.server_nodes(), logdir=str(p.run_dir),
+        server_nodes=p.server_nodes(), logdir=p.storage.location(),
+        storage={"root": p.storage.location(),
+                 "node": node_label() if p.storage.is_local else "(object store)"},
+        ended=ended,
     )  # fmt: skip
+    if stopped_by:
+        summary["stopped_by"] = stopped_by
     if failure is not None:
         summary["error"] = str(failure)
-    path = p.run_dir / "summary.json"
+    where = p.storage.location("summary.json")
     try:
-        write_bytes(path, json.dumps(summary, indent=2).encode(), "summary")
+        p.storage.write_bytes("summary.json", json.dumps(summary, indent=2).encode(), "summary")
     except DiskWriteError as exc:
         if failure is None:
             raise exc.also(f"the run itself completed (checkpoint: {checkpoint})") from None
         raise failure.also(f"{_kept(run_stats, checkpoint)}; {exc}") from None
     if failure is not None:
-        raise failure.also(f"{_kept(run_stats, checkpoint)}; summary: {path}")
+        raise failure.also(f"{_kept(run_stats, checkpoint)}; summary: {where}")
     return summary
 
 

@@ -16,6 +16,7 @@ from torch.utils.tensorboard import SummaryWriter
 from tqdm import tqdm
 
 from robogym_ray.errors import DiskWriteError
+from robogym_ray.storage import RunStorage
 
 
 class RunLogger:
@@ -27,9 +28,17 @@ class RunLogger:
     """
 
     def __init__(
-        self, run_dir: Path, total: int, progress: bool = True, stop: threading.Event | None = None
+        self,
+        run_dir: Path,
+        total: int,
+        progress: bool = True,
+        stop: threading.Event | None = None,
+        storage: RunStorage | None = None,
     ) -> None:
+        """``storage``: an object store the events are uploaded to from ``run_dir`` (a local
+        staging folder) at every ``write`` and at ``close``; None: ``run_dir`` is their home."""
         self.run_dir = run_dir
+        self.storage = storage
         self.error: DiskWriteError | None = None
         self._stop = stop
         self.writer: SummaryWriter | None = None
@@ -83,8 +92,22 @@ class RunLogger:
             ret=f"{scalars.get('train/return_last100', 0):.1f}",
             learner=int(scalars.get("learner/steps", 0)),
         )
+        self._upload()
+
+    def _upload(self) -> None:
+        """The event files, whole, to an object store (they are small: scalars and GIFs)."""
+        if self.storage is None or self.writer is None:
+            return
+        with self._guarded():
+            self.writer.flush()
+            for events in self.run_dir.glob("events.out.tfevents.*"):
+                try:
+                    self.storage.upload(events, events.name, "TensorBoard events")
+                except DiskWriteError as exc:
+                    raise OSError(str(exc)) from None
 
     def close(self) -> None:
+        self._upload()
         if self.writer is not None:
             with self._guarded():
                 self.writer.flush()

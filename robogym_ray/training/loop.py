@@ -15,6 +15,7 @@ import logging
 import threading
 import time
 from collections import deque
+from contextlib import suppress
 from typing import Any
 
 import ray
@@ -23,10 +24,11 @@ from ray.exceptions import (
     GetTimeoutError,
     OwnerDiedError,
     RayActorError,
+    RayError,
     RayTaskError,
 )
 
-from robogym_ray.errors import DiskWriteError
+from robogym_ray.errors import LearnerLostError, RunStoppedError
 from robogym_ray.experience.rollout import RolloutResult
 from robogym_ray.supervision.restart_policy import FaultCause
 from robogym_ray.training import setup, stats
@@ -80,9 +82,10 @@ class LearnerDeaths:
         self.count += 1
         return True
 
-    def answered(self, pid: int) -> None:
-        """A call returned from ``pid``: a new pid is a death whose calls never failed here."""
-        self._new_pid(pid)
+    def answered(self, pid: int) -> bool:
+        """A call returned from ``pid``: a new pid is a death whose calls never failed here
+        (True when it is one not counted yet)."""
+        return self._new_pid(pid)
 
     def _new_pid(self, pid: int) -> bool:
         if pid in self._seen:
@@ -107,16 +110,26 @@ class TrainingLoop:
         self.weights_stale = False
         self.evals = EvalSchedule(program, self.stats)
         self.stop = threading.Event()
-        """Set (e.g. by a SIGTERM handler) to end the run early, with checkpoint and summary."""
-        self.failure: DiskWriteError | None = None
-        """A file the run could not write (a full disk): it ends the run, without retrying."""
+        """Set (e.g. by a SIGINT/SIGTERM handler) to end the run early, with checkpoint and
+        summary."""
+        self.stopped_by: str | None = None
+        """What asked for that stop (``SIGINT``, ``SIGTERM``), for the summary."""
+        self.failure: RunStoppedError | None = None
+        self._lost_status: dict[str, Any] = {}
+        """What ends the run without retrying: a file it could not write (a full disk), a
+        learner restarted with nothing to restore."""
+        self._replies: list[Any] = []
+        """Calls whose answers are not needed but whose errors must be taken (``set_weights``
+        after a learner death fails): Ray prints an "Unhandled error" for any it drops."""
         self._real_deadline: float | None = None
 
     def run(self) -> dict[str, Any]:
         from robogym_ray.training.logger import RunLogger  # imports tensorboard lazily
 
         cfg, p = self.cfg, self.p
-        logger = RunLogger(p.run_dir, total=cfg.total_steps, progress=cfg.progress, stop=self.stop)
+        uploads = None if p.storage.is_local else p.storage  # events staged in run_dir
+        logger = RunLogger(p.run_dir, total=cfg.total_steps, progress=cfg.progress,
+                           stop=self.stop, storage=uploads)  # fmt: skip
         pending = {self._collect(slot): slot for slot in p.workers}
         learner_calls: deque[Any] = deque()
         self.started = time.perf_counter()
@@ -155,17 +168,34 @@ class TrainingLoop:
             in_flight = sum(s.kind == "sim" for s in pending.values()) * cfg.steps_per_call
             if not self._done(in_flight):
                 pending[self._collect(slot)] = slot
+            self._take_replies()
             eval_ref = self.evals.poll(eval_ref, logger, self._wall())
             self.evals.snapshot(self._wall())
             self._check_disk(logger)
             if logger.due(cfg.log_every_s):  # scalars cost a supervisor round trip
                 logger.write(self._scalars(), self.stats.env_steps)
         self._drain_learner(learner_calls, block=True, all_=True)
+        self._take_replies(wait_s=30.0)
+        if isinstance(self.failure, LearnerLostError):  # nothing of the run's to snapshot
+            return finish(self.p, self.stats, logger, self._scalars, self._wall, self.failure,
+                          learner_status=self._lost_status)  # fmt: skip
         self.evals.snapshot(self._wall(), final=True)  # the mark the run ended on
         if not self._check_disk(logger):  # a full disk's run reports that, not a policy
             self.evals.final(eval_ref, logger, self._wall())  # the final policy, evaluated
             self._check_disk(logger)
-        return finish(self.p, self.stats, logger, self._scalars, self._wall, self.failure)
+        return finish(self.p, self.stats, logger, self._scalars, self._wall, self.failure,
+                      stopped_by=self.stopped_by)  # fmt: skip
+
+    def _take_replies(self, wait_s: float = 0.0) -> None:
+        """Take the answers (and errors) of the calls in ``_replies`` that have finished
+        (waiting up to ``wait_s`` for the rest)."""
+        if not self._replies:
+            return
+        done, self._replies = ray.wait(self._replies, num_returns=len(self._replies),
+                                       timeout=wait_s)  # fmt: skip
+        for ref in done:
+            with suppress(RayError):  # a worker or the learner that died: counted where seen
+                ray.get(ref)
 
     def _check_disk(self, logger: Any) -> bool:
         """Whether a file could not be written (a full disk): a checkpoint, TensorBoard's
@@ -234,6 +264,7 @@ class TrainingLoop:
                 if self.learner_deaths.call_failed():
                     self.stats.learner_failures = self.learner_deaths.count
                     log.warning("learner actor failed; Ray restarts it from its last checkpoint")
+                    self._learner_restarted()
                 continue
             except RayTaskError as exc:
                 # A checkpoint the learner could not write (a full disk): the next would fail
@@ -245,7 +276,8 @@ class TrainingLoop:
                 self.stop.set()
                 continue
             if "pid" in metrics:
-                self.learner_deaths.answered(int(metrics.pop("pid")))
+                if self.learner_deaths.answered(int(metrics.pop("pid"))):
+                    self._learner_restarted()
                 self.stats.learner_failures = self.learner_deaths.count
             self.stats.learner.update(metrics)
             if metrics.get("steps_this_call", 0) > 0:
@@ -253,13 +285,47 @@ class TrainingLoop:
             if not all_:
                 block = False
 
+    def _learner_restarted(self) -> None:
+        """After a learner death: the new process's weights from now on, and what it restored.
+        One that restored no checkpoint although the old one had trained ends the run
+        (``LearnerLostError``): training on from scratch would pass for the same run."""
+        self._replies.append(self.weights_ref)  # the dead process's, maybe never produced
+        self.weights_stale = True
+        if self.failure is not None:
+            return
+        try:
+            status = ray.get(self.p.learner.status.remote(), timeout=120)
+        except (RayActorError, GetTimeoutError):  # dead for good: its calls keep failing
+            return
+        trained = max(int(self.stats.learner.get("learner_steps", 0)), self.p.first_learner_step)
+        if status["restored_from_step"] >= 0:
+            log.warning(
+                "learner restarted on %s from its checkpoint at step %d (%d transitions)",
+                status["node"], status["restored_from_step"], status["restored_replay"],
+            )  # fmt: skip
+            return
+        if trained <= 0:
+            log.warning("learner restarted on %s before its first step: nothing learned is lost",
+                        status["node"])  # fmt: skip
+            return
+        self._lost_status = {**status, "total_added": self.p.first_total_added}
+        self.failure = LearnerLostError(
+            f"the learner restarted on {status['node']} and found no checkpoint in "
+            f"{self.p.storage.location('checkpoints')}: the {trained:,} learner steps it had "
+            "taken and its replay are lost, so the run stopped instead of training on from "
+            "scratch (a checkpoint is written every --checkpoint-every learner steps to "
+            "--storage, which every node must reach)"
+        )
+        ray.kill(self.p.learner, no_restart=True)  # no checkpoint of fresh networks, ever
+        self.stop.set()
+
     def _maybe_sync(self, slot: WorkerSlot, steps: int) -> None:
         slot.steps_since_sync += steps
         if slot.steps_since_sync >= self.cfg.weight_sync_steps or slot.weights_version < 0:
             if self.weights_stale:  # fetched only when a worker is due, not per learner call
                 self.weights_ref = self.p.learner.get_weights.remote()
                 self.weights_stale = False
-            slot.handle.set_weights.remote(self.weights_ref)
+            self._replies.append(slot.handle.set_weights.remote(self.weights_ref))
             slot.steps_since_sync = 0
             slot.weights_version = int(self.stats.learner.get("learner_steps", 0))
 

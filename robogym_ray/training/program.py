@@ -1,44 +1,75 @@
-"""Building a training program: the supervisor, the learner, the rollout workers, the evaluator
-and the real robots of one run, as Ray actors (``distributed/remote.py``), and stopping them."""
+"""Building a training program: every actor of one run, what it runs and where, in one place.
+
+======================  ==============================  =========================================
+actor                   runs                            placed (Ray options, beside its CPUs)
+======================  ==============================  =========================================
+supervisor (gRPC path)  robot-server actors             ``--server-resource`` on the servers
+learner                 ``LearnerService``: replay,     ``--learner-cpus``/``--learner-gpus``,
+                        D4PG steps, checkpoints to the  ``--learner-resource``; Ray restarts it
+                        run's storage                   (on any node that fits) from storage
+rollout workers         ``RolloutWorker`` x K envs;     ``--worker-cpus``, ``--worker-resource``
+                        batches -> learner directly     (+ ``--server-resource`` in-process),
+                                                        spread over nodes (``--spread-workers``)
+evaluator               ``Evaluator``: greedy episodes  ``--evaluator-cpus``/``-resource``
+real robots             ``RealRobot``: safety filter    on the driver's node (never restarted)
+======================  ==============================  =========================================
+
+Every file of the run goes to one ``RunStorage`` (``--storage``/``--logdir``, + run name) that
+all nodes reach: the learner writes its checkpoints there itself, the driver the rest.
+"""
 
 from __future__ import annotations
 
-import time
-from pathlib import Path
+import logging
 from typing import Any
 
 import ray
 
 from robogym_ray.distributed import remote
+from robogym_ray.distributed.storage_check import check_reachable
 from robogym_ray.envs.inprocess import InProcessServerProvider
 from robogym_ray.errors import DiskWriteError
 from robogym_ray.experience.rollout import box_dims, make_gym_env
 from robogym_ray.learner.config import D4PGConfig
 from robogym_ray.robots.emulation import EmulationConfig
+from robogym_ray.storage import RunStorage
 from robogym_ray.training import setup
 from robogym_ray.training.config import TrainConfig
 from robogym_ray.training.presets import TaskPreset
 from robogym_ray.training.selection import PolicySnapshots, SnapshotSelector
 from robogym_ray.training.stats import WorkerSlot
 
+log = logging.getLogger(__name__)
+
+
+def requires(*names: str | None) -> dict[str, Any]:
+    """Ray options that put an actor on the nodes having every named custom resource (a token
+    amount: the resource marks the node, it does not count actors)."""
+    wanted = {name: 0.01 for name in names if name}
+    return {"resources": wanted} if wanted else {}
+
 
 class Program:
     """The actors of one run. Built in ``__init__`` (stopped again if any fails to start);
-    ``shutdown`` stops every one of them."""
+    ``shutdown`` stops every one of them. ``cfg.run_name`` is set (``run.run_training``)."""
 
     def __init__(
         self, cfg: TrainConfig, d4pg: D4PGConfig, preset: TaskPreset, emulation: EmulationConfig
     ) -> None:
         self.cfg, self.d4pg, self.preset, self.emulation = cfg, d4pg, preset, emulation
-        self.run_dir = Path(cfg.logdir) / (
-            cfg.run_name or f"{preset.env_id.split('/')[-1]}-{time.strftime('%Y%m%d-%H%M%S')}"
-        )
-        try:
-            self.run_dir.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:  # a full disk: one line, not a traceback
-            raise DiskWriteError.of("run directory", self.run_dir, exc) from None
+        assert cfg.run_name, "run_training names the run"
+        self.name = cfg.run_name
         setup.check_resources(cfg)
-        self.supervision = setup.start_supervision(cfg, preset.env_id, self.run_dir.name)
+        root = RunStorage(setup.storage_root(cfg))
+        check_reachable(root)  # before anything of the run is written or started
+        self.storage = root.child(self.name)
+        try:
+            # Where this process writes (TensorBoard, policy files): the storage's folder for a
+            # path, a local folder uploaded from for an object store.
+            self.run_dir = self.storage.staging("")
+        except OSError as exc:  # a full disk: one line, not a traceback
+            raise DiskWriteError.of("run directory", self.storage.location(), exc) from None
+        self.supervision = setup.start_supervision(cfg, preset.env_id, self.name)
         self.learner: Any = None
         self.evaluator: Any = None
         self.workers: list[WorkerSlot] = []
@@ -56,35 +87,40 @@ class Program:
         probe = make_gym_env(env_id)()  # dimensions only: it never resets, so no server
         self.obs_dim, self.act_dim = box_dims(probe)
         probe.close()
-        checkpoints = self.run_dir / "checkpoints"
         if cfg.init_from:
-            setup.seed_checkpoint(cfg.init_from, checkpoints, d4pg, self.obs_dim, self.act_dim)
+            setup.seed_checkpoint(cfg.init_from, self.storage, d4pg, self.obs_dim, self.act_dim)
         self.learner = remote.LearnerActor.options(
             num_cpus=cfg.learner_cpus,
             num_gpus=setup.learner_gpus(cfg),
+            **requires(cfg.learner_resource),
             max_restarts=3,
             max_task_retries=0,
-            name=f"learner-{self.run_dir.name}",
+            name=f"learner-{self.name}",
             namespace=remote.NAMESPACE,
         ).remote(
             d4pg, self.obs_dim, self.act_dim, seed=cfg.seed,
-            checkpoint_dir=str(checkpoints), checkpoint_every=cfg.checkpoint_every,
+            storage=self.storage, checkpoint_every=cfg.checkpoint_every,
             replay_snapshot_every_s=cfg.replay_snapshot_every_s,
         )  # fmt: skip
         # A continued run starts at the checkpoint's step count; rates count this run's steps.
         status = ray.get(self.learner.status.remote())
         self.first_learner_step, self.first_total_added = status["version"], status["total_added"]
+        log.info("learner on %s", status["node"])
         self.workers = self._start_workers()
         if cfg.evaluator:
             kwargs = self._env_kwargs(None) | setup.evaluator_env_kwargs(cfg, env_id)
-            options = {"num_cpus": cfg.evaluator_cpus, **self._sim_options()}
-            self.evaluator = remote.EvaluatorActor.options(**options).remote(
+            self.evaluator = remote.EvaluatorActor.options(
+                num_cpus=cfg.evaluator_cpus,
+                **requires(cfg.evaluator_resource, *self._sim_resources()),
+            ).remote(
                 make_gym_env(env_id, kwargs), d4pg,
                 seed=cfg.seed + 10_000, video_every_s=cfg.video_interval_s,
             )  # fmt: skip
+        checkpoints = self.storage.child("checkpoints")
+        staged = self.run_dir / "checkpoints"
         selecting = cfg.select_episodes and self.evaluator is not None
-        self.selector = SnapshotSelector(checkpoints) if selecting else None
-        self.snapshots = PolicySnapshots(checkpoints, cfg.policy_snapshot_every_s)
+        self.selector = SnapshotSelector(staged, checkpoints) if selecting else None
+        self.snapshots = PolicySnapshots(staged, cfg.policy_snapshot_every_s, checkpoints)
 
     def _env_kwargs(self, index: int | None) -> dict[str, Any]:
         """Sim envs build their robots in their own process (``sim_path="inprocess"``) or lease
@@ -100,13 +136,11 @@ class Program:
         holder = "evaluator" if index is None else f"worker-{index}"
         return {"provider": self.supervision.provider(emulated, holder=holder)}
 
-    def _sim_options(self) -> dict[str, Any]:
-        """Ray placement of a simulated worker: with in-process robots, ``server_resource``
-        places the worker itself (its robots run in it)."""
+    def _sim_resources(self) -> tuple[str, ...]:
+        """With in-process robots, ``server_resource`` places the simulating actors themselves
+        (their robots run in them)."""
         cfg = self.cfg
-        if cfg.sim_path == "inprocess" and cfg.server_resource:
-            return {"resources": {cfg.server_resource: 0.01}}
-        return {}
+        return (cfg.server_resource,) if cfg.sim_path == "inprocess" and cfg.server_resource else ()
 
     def _start_workers(self) -> list[WorkerSlot]:
         cfg = self.cfg
@@ -124,8 +158,13 @@ class Program:
     def _rollout_actor(self, i: int, real_env: Any = None, generation: int = 0) -> Any:
         cfg = self.cfg
         factory = real_env or make_gym_env(self.preset.env_id, self._env_kwargs(i))
-        name = f"rollout-{self.run_dir.name}-{i}" + (f"-{generation}" if generation else "")
-        placement = {} if real_env else self._sim_options()
+        name = f"rollout-{self.name}-{i}" + (f"-{generation}" if generation else "")
+        if real_env:  # anywhere: it reaches its robot through the real-robot actor
+            placement: dict[str, Any] = {}
+        else:
+            placement = requires(cfg.worker_resource, *self._sim_resources())
+            if cfg.spread_workers:
+                placement["scheduling_strategy"] = "SPREAD"
         return remote.RolloutActor.options(
             num_cpus=cfg.worker_cpus, name=name, namespace=remote.NAMESPACE, **placement
         ).remote(
@@ -149,7 +188,7 @@ class Program:
         return True
 
     def _real_env(self, k: int) -> Any:
-        actor, factory = setup.real_robot(self.cfg, self.preset.env_id, self.run_dir.name, k)
+        actor, factory = setup.real_robot(self.cfg, self.preset.env_id, self.name, k)
         self.real_robots.append(actor)
         return factory
 

@@ -3,21 +3,23 @@
 ``run_training`` is the driver: it joins or starts Ray, builds the run's actors
 (``program.Program``: supervisor and robot servers, learner, rollout workers, evaluator, real
 robots) and drives them with ``loop.TrainingLoop`` until ``total_steps``. Everything the user
-watches goes to TensorBoard under ``logdir/run_name``; the summary to ``summary.json``.
+watches goes to TensorBoard under ``STORAGE/RUN_NAME``; the summary to ``summary.json``.
 """
 
 from __future__ import annotations
 
 import json
+import os
 import signal
+import sys
 import threading
 from collections.abc import Mapping
+from dataclasses import replace
 from typing import Any
 
 import ray
 
 from robogym_ray.errors import ConfigError
-from robogym_ray.learner.checkpoint import write_bytes
 from robogym_ray.robots.emulation import EmulationConfig
 from robogym_ray.training import setup
 from robogym_ray.training.config import TrainConfig
@@ -31,7 +33,7 @@ def run_training(
     d4pg_overrides: Mapping[str, Any] | None = None,
     emulation: EmulationConfig | None = None,
 ) -> dict:
-    """Run one training to completion; returns the summary (also in ``run_dir/summary.json``).
+    """Run one training to completion; returns the summary (also in ``summary.json``).
 
     ``emulation`` is what the ``cfg.emulated_workers`` workers' robots differ by (default
     ``EmulationConfig()``, the emulated robot ``robogym-ray serve --emulate-hardware`` serves).
@@ -40,6 +42,8 @@ def run_training(
     d4pg = d4pg_for(preset, d4pg_overrides)
     if cfg.emulated_workers and not preset.env_id.startswith("RoboGymRay/"):
         raise ConfigError(f"--emulated-workers needs a robot task; {preset.env_id} has none")
+    cfg = replace(cfg, run_name=setup.run_name(cfg, preset.env_id))
+    setup.check_run_name(cfg, preset.env_id)
     started_ray = setup.ensure_ray(cfg)
     try:
         program = Program(cfg, d4pg, preset, emulation or EmulationConfig())
@@ -48,23 +52,36 @@ def run_training(
             ray.shutdown()
         raise
     loop = TrainingLoop(program)
-    previous = _stop_on_sigterm(loop)
+    previous = _stop_on_signals(loop)
     try:
         record = json.dumps(program.config_record(), indent=2).encode()
-        write_bytes(program.run_dir / "config.json", record, "run config")  # full: DiskWriteError
+        program.storage.write_bytes("config.json", record, "run config")  # DiskWriteError
         return loop.run()
     finally:
-        if previous is not None:
-            signal.signal(signal.SIGTERM, previous)
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
         program.shutdown()
         if started_ray:
             ray.shutdown()
 
 
-def _stop_on_sigterm(loop: TrainingLoop) -> Any:
-    """SIGTERM (e.g. ``ray job stop``, a batch system's time limit) ends the run the way
-    total_steps does: the last checkpoint and summary.json are written. Returns the handler it
-    replaced (None when this is not the main thread, where Python allows no handler)."""
+def _stop_on_signals(loop: TrainingLoop) -> dict[int, Any]:
+    """SIGINT (Ctrl-C) and SIGTERM (``ray job stop``, a batch system's time limit) end the run
+    the way total_steps does, recorded as ``stopped``: collection stops, the final checkpoint
+    and summary.json are written. A second signal exits at once (status 130 or 143), as a user
+    pressing Ctrl-C again expects. Returns the handlers replaced (none when this is not the main
+    thread, where Python allows no handler)."""
     if threading.current_thread() is not threading.main_thread():
-        return None
-    return signal.signal(signal.SIGTERM, lambda signum, frame: loop.stop.set())
+        return {}
+
+    def stop(signum: int, frame: Any) -> None:
+        name = signal.Signals(signum).name
+        if loop.stop.is_set() and loop.stopped_by is not None:
+            print(f"\n{name} again: exiting now, without the final checkpoint", file=sys.stderr)
+            os._exit(128 + signum)  # Ray's threads would keep a normal exit waiting
+        loop.stopped_by = name
+        loop.stop.set()
+        print(f"\n{name}: stopping - writing the final checkpoint and summary "
+              f"({name} again to exit at once)", file=sys.stderr, flush=True)  # fmt: skip
+
+    return {s: signal.signal(s, stop) for s in (signal.SIGINT, signal.SIGTERM)}

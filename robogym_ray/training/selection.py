@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from robogym_ray.learner.checkpoint import BEST_POLICY_NAME, write_policy
+from robogym_ray.storage import RunStorage
 
 TIMED_NAME = "policy-{minutes:06.2f}min"
 """A timed snapshot's name, by its wall-clock mark, + ".pt" (the peers' snapshots: + ".zip", or
@@ -40,8 +41,11 @@ def score(result: Mapping[str, float]) -> tuple[float, float]:
 class SnapshotSelector:
     """Tracks the best (success rate, mean return) and saves that snapshot's policy."""
 
-    def __init__(self, checkpoint_dir: Path) -> None:
+    def __init__(self, checkpoint_dir: Path, storage: RunStorage | None = None) -> None:
+        """``storage``: where the file is published from ``checkpoint_dir`` (an object store's
+        staging folder); None: ``checkpoint_dir`` is where it stays."""
         self.path = checkpoint_dir / BEST_POLICY_NAME
+        self.storage = storage
         self.best: tuple[float, float] | None = None
         self.record: dict[str, Any] = {}
         self.scored = 0
@@ -61,7 +65,7 @@ class SnapshotSelector:
         """
         best = score(result)
         record = {
-            "path": str(self.path),
+            "path": _location(self.storage, self.path),
             "learner_steps": int(version),
             "env_steps": int(env_steps),
             "success_rate": best[0],
@@ -69,6 +73,7 @@ class SnapshotSelector:
             "snapshots_scored": self.scored,
         }
         write_policy(self.path, weights, selection=record)
+        _publish(self.storage, self.path)
         self.best, self.record = best, record
 
     def summary(self) -> dict[str, Any]:
@@ -86,11 +91,18 @@ class PolicySnapshots:
     leave out the time the first run spent after its last mark.
     """
 
-    def __init__(self, checkpoint_dir: Path, every_s: float) -> None:
+    def __init__(
+        self, checkpoint_dir: Path, every_s: float, storage: RunStorage | None = None
+    ) -> None:
+        """``storage``: as ``SnapshotSelector``'s."""
         self.dir, self.every_s, self.taken = checkpoint_dir, every_s, 0
+        self.storage = storage
         self.written: list[dict[str, Any]] = []
+        names = (
+            storage.names() if storage is not None else [p.name for p in checkpoint_dir.glob("*")]
+        )
         self.offset_min = max(
-            (m for p in checkpoint_dir.glob("policy-*min.pt") if (m := mark_minutes(p.name))),
+            (m for name in names if name.startswith("policy-") and (m := mark_minutes(name))),
             default=0.0,
         )
 
@@ -115,12 +127,22 @@ class PolicySnapshots:
         self.skip(mark)
         minutes = self.offset_min + self.every_s * mark / 60.0
         path = self.dir / (TIMED_NAME.format(minutes=minutes) + ".pt")
-        record = {"path": str(path), "wall_min": round(minutes, 2),
+        record = {"path": _location(self.storage, path), "wall_min": round(minutes, 2),
                   "saved_at_min": round(self.offset_min + wall_s / 60.0, 2),
                   "learner_steps": int(version), "env_steps": int(env_steps)}  # fmt: skip
         write_policy(path, weights, snapshot=record)
+        _publish(self.storage, path)
         self.written.append(record)
         return path
+
+
+def _location(storage: RunStorage | None, path: Path) -> str:
+    return str(path) if storage is None else storage.location(path.name)
+
+
+def _publish(storage: RunStorage | None, path: Path) -> None:
+    if storage is not None:
+        storage.publish(path, path.name, "policy file")
 
 
 def mark_minutes(name: str) -> float | None:

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import json
 import logging
 import os
+import time
 from collections import Counter
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -22,16 +24,18 @@ from robogym_ray.errors import ConfigError
 from robogym_ray.experience.revisits import FailedStartRevisits
 from robogym_ray.experience.rollout import make_gym_env
 from robogym_ray.learner import checkpoint
-from robogym_ray.learner.checkpoint import CHECKPOINT_NAME, copy_file, replay_path
+from robogym_ray.learner.checkpoint import CHECKPOINT_NAME, replay_path
 from robogym_ray.learner.config import D4PGConfig
 from robogym_ray.learner.learner import linear_ramp, make_adam
 from robogym_ray.learner.networks import DistributionalCritic, Policy
 from robogym_ray.realrobot.safety import safety_for
 from robogym_ray.robots.emulation import EmulationConfig
+from robogym_ray.storage import RunStorage, local_file, resolve_root
 from robogym_ray.supervision.restart_policy import FaultCause
 from robogym_ray.supervision.supervisor import SupervisorConfig
 from robogym_ray.text import clip_text
 from robogym_ray.training.config import TrainConfig
+from robogym_ray.training.presets import resolve_task
 
 log = logging.getLogger(__name__)
 
@@ -197,7 +201,7 @@ def read_init_from(init_from: str, label: str = "--init-from") -> dict[str, Any]
     """The learner checkpoint ``init_from``, checked as a file (readable, complete, its replay
     readable); what needs the task's dimensions is ``check_init_from``'s. ``label``: what the
     file is to the user, for the error."""
-    source = Path(init_from)
+    source = Path(local_file(init_from, label))  # an object store's: downloaded once
     if not source.is_file():
         raise ConfigError(f"{label} {init_from}: no such checkpoint file")
     state = checkpoint.read(source)
@@ -242,26 +246,75 @@ def check_init_from(
 
 
 def seed_checkpoint(
-    init_from: str, checkpoint_dir: Path, d4pg: D4PGConfig, obs_dim: int, act_dim: int
+    init_from: str, storage: RunStorage, d4pg: D4PGConfig, obs_dim: int, act_dim: int
 ) -> bool:
-    """Copy ``init_from`` (and its replay) into ``checkpoint_dir`` for the learner to restore.
+    """Copy ``init_from`` (and its replay; a path or an object store's URI) into the run's
+    ``checkpoints/`` in ``storage``, for the learner to restore.
 
     Checked (``check_init_from``) before anything is copied. Returns False (and copies nothing)
-    when the run already has its own checkpoint, e.g. a re-run of the same command.
+    when the run already has its own checkpoint (a ``--resume``d run: it is newer).
     """
-    target = checkpoint_dir / CHECKPOINT_NAME
-    if target.exists():
-        log.warning("%s exists; --init-from %s is not used", target, init_from)
+    target = f"checkpoints/{CHECKPOINT_NAME}"
+    if storage.exists(target):
+        log.warning("%s exists; --init-from %s is not used", storage.location(target), init_from)
         return False
-    source = Path(init_from)
-    state = check_init_from(init_from, d4pg, obs_dim, act_dim)
+    source = Path(local_file(init_from, "--init-from"))
+    state = check_init_from(str(source), d4pg, obs_dim, act_dim)
     # The replay first: learner.pt marks the run's own checkpoint, so a copy cut off by a full
     # disk leaves none, and the re-run copies again (copy_file leaves no partial file).
     if replay_path(source).is_file():
-        copy_file(replay_path(source), replay_path(target), "learner replay")
-    copy_file(source, target, "learner checkpoint")
-    log.info("continuing from %s (step %d)", source, int(state["num_steps"]))
+        storage.upload(replay_path(source), replay_path(target).as_posix(), "learner replay")
+    storage.upload(source, target, "learner checkpoint")
+    log.info("continuing from %s (step %d)", init_from, int(state["num_steps"]))
     return True
+
+
+def run_name(cfg: TrainConfig, env_id: str) -> str:
+    """``cfg.run_name``, or a new one: the task and the time, with ``-2``, ``-3``... when two
+    runs start in the same second (a default name never lands in another run's folder)."""
+    if cfg.run_name:
+        return cfg.run_name
+    root = RunStorage(storage_root(cfg))
+    base = f"{env_id.split('/')[-1]}-{time.strftime('%Y%m%d-%H%M%S')}"
+    name, n = base, 1
+    while root.child(name).holds_run() or (root.is_local and (root.path / name).exists()):
+        n += 1
+        name = f"{base}-{n}"
+    return name
+
+
+def check_run_name(cfg: TrainConfig, env_id: str) -> None:
+    """A run folder that holds a run already is continued only when asked (``--resume``), and
+    only for the same task; ``--resume`` needs a checkpoint to continue from. One line each."""
+    assert cfg.run_name
+    storage = RunStorage(storage_root(cfg)).child(cfg.run_name)
+    held = storage.holds_run()
+    if held and not cfg.resume:
+        raise ConfigError(
+            f"run folder {storage.location()} holds a run already: pass --resume to continue "
+            "it, or another --run-name (leave it out for a new name each run)"
+        )
+    if not cfg.resume:
+        return
+    if not storage.exists(f"checkpoints/{CHECKPOINT_NAME}"):
+        raise ConfigError(f"--resume: {storage.location()} has no checkpoint to continue from")
+    if storage.exists("config.json"):
+        try:
+            task = json.loads(storage.read_bytes("config.json"))["train"]["task"]
+            earlier = resolve_task(task).env_id
+        except (ValueError, KeyError, TypeError, ConfigError):
+            return  # an unreadable record: the checkpoint's own check (shapes) still applies
+        if earlier != env_id:
+            raise ConfigError(
+                f"--resume: {storage.location()} is a run of {earlier}, not {env_id}; pass "
+                "another --run-name for a new run"
+            )
+
+
+def storage_root(cfg: TrainConfig) -> str:
+    """Where the run's folder goes: ``--storage`` (else ``--logdir``), as every node sees it
+    (``storage.resolve_root``: absolute, out of a Ray job's temporary working-dir copy)."""
+    return resolve_root(cfg.storage or cfg.logdir)
 
 
 def evaluator_env_kwargs(cfg: TrainConfig, env_id: str) -> dict[str, Any]:

@@ -19,6 +19,7 @@ from robogym_ray.learner.checkpoint import REPLAY_SUFFIX
 from robogym_ray.learner.config import D4PGConfig
 from robogym_ray.learner.service import LearnerService
 from robogym_ray.protocol.client import Deadlines
+from robogym_ray.storage import RunStorage
 from robogym_ray.training.config import TrainConfig
 from robogym_ray.training.setup import noise_scale, seed_checkpoint
 
@@ -210,15 +211,16 @@ def test_final_checkpoint_carries_the_replay_and_periodic_ones_drop_it(tmp_path:
 def test_init_from_is_checked_before_any_actor_starts(tmp_path: Path) -> None:
     source = tmp_path / "old" / "learner.pt"
     LearnerService(SMALL, 3, 1, checkpoint_dir=str(source.parent)).checkpoint()
+    storage = RunStorage(str(tmp_path / "new"))
     run_dir = tmp_path / "new" / "checkpoints"
     with pytest.raises(ConfigError, match="no such checkpoint"):
-        seed_checkpoint(str(tmp_path / "missing.pt"), run_dir, SMALL, 3, 1)
+        seed_checkpoint(str(tmp_path / "missing.pt"), storage, SMALL, 3, 1)
     with pytest.raises(ConfigError, match="obs_dim=4"):  # another task's observation size
-        seed_checkpoint(str(source), run_dir, SMALL, 4, 1)
+        seed_checkpoint(str(source), storage, SMALL, 4, 1)
     assert not run_dir.exists()  # a refused checkpoint leaves nothing behind
-    assert seed_checkpoint(str(source), run_dir, SMALL, 3, 1)
+    assert seed_checkpoint(str(source), storage, SMALL, 3, 1)
     assert (run_dir / "learner.pt").read_bytes() == source.read_bytes()
-    # A re-run of the same command keeps the run's own, newer checkpoint.
+    # A resumed run keeps its own, newer checkpoint.
     (run_dir / "learner.pt").write_bytes(b"newer")
-    assert not seed_checkpoint(str(source), run_dir, SMALL, 3, 1)
+    assert not seed_checkpoint(str(source), storage, SMALL, 3, 1)
     assert (run_dir / "learner.pt").read_bytes() == b"newer"
