@@ -45,7 +45,26 @@ class RenderError(RoboGymRayError, RuntimeError):
     """A render mode cannot work here (no display for ``human``, a missing optional package)."""
 
 
-class DiskWriteError(RoboGymRayError):
+class RunStoppedError(RoboGymRayError):
+    """Something ended a training run before its end: a file it could not write
+    (``DiskWriteError``), a learner that restarted with nothing to restore
+    (``LearnerLostError``). ``also`` adds what the run kept, for the one ``error:`` line."""
+
+    def also(self, note: str) -> RunStoppedError:
+        """The same error (type and attributes) with ``note`` appended to its message."""
+        copy = type(self).__new__(type(self))
+        copy.__dict__.update(self.__dict__)
+        copy.args = (f"{self}; {note}",)
+        return copy
+
+
+class LearnerLostError(RunStoppedError):
+    """The learner's process died (e.g. with its node) and the one Ray started in its place
+    found no checkpoint in the run's storage: what it had learned is gone, so the run stops
+    rather than train on from scratch as if nothing had happened."""
+
+
+class DiskWriteError(RunStoppedError):
     """A file of a run (checkpoint, replay, summary, TensorBoard events) could not be written;
     the file that was there before is untouched and no temporary file is left behind.
 
@@ -74,10 +93,6 @@ class DiskWriteError(RoboGymRayError):
         kind = DiskFullError if exc.errno in (errno.ENOSPC, errno.EDQUOT) else DiskWriteError
         message = f"cannot write {what} {path}: {reason}"
         return kind(message, path=str(path), reason=reason, what=what)
-
-    def also(self, note: str) -> DiskWriteError:
-        """The same error (type and attributes) with ``note`` appended to its message."""
-        return type(self)(f"{self}; {note}", path=self.path, reason=self.reason, what=self.what)
 
 
 class DiskFullError(DiskWriteError):
