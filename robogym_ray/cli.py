@@ -21,7 +21,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "resume": ("robogym_ray.distributed.resume", "Resume a paused real robot (operator)."),
     "train": ("robogym_ray.training.command", "Train D4PG with rollout workers on Ray."),
     "evaluate": ("robogym_ray.evaluation", "Evaluate a policy for N episodes (success rates)."),
-    "export": ("robogym_ray.export", "Export a checkpoint's policy as TorchScript + JSON."),
+    "export": ("robogym_ray.export", "Export a policy as TorchScript or ONNX, plus JSON."),
     "run-policy": ("robogym_ray.run_policy", "Drive a robot server with an exported policy."),
 }
 

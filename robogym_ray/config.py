@@ -14,17 +14,18 @@ import inspect
 import json
 import math
 import os
+import re
 import reprlib
 import textwrap
 import types
 import typing
-from collections.abc import Mapping
+from collections.abc import Collection, Iterable, Mapping, Sequence
 from functools import cache
 from pathlib import Path
 from typing import Any, TypeVar
 
 from robogym_ray.errors import ConfigError
-from robogym_ray.text import MAX_REASON_CHARS, clip_text, preview
+from robogym_ray.text import MAX_REASON_CHARS, clip_text, did_you_mean, preview
 from robogym_ray.text import quote as quote_name
 
 T = TypeVar("T")
@@ -60,52 +61,95 @@ def _scalar_type(tp: Any) -> Any:
     return args[0] if args else tp
 
 
+_STATES_DEFAULT = re.compile(r"\(default\b|\bdefault:", re.IGNORECASE)
+"""A docstring that says "(default ..." or "default: ..." states its own default."""
+_METAVARS = {int: "N", float: "X"}
+"""Short metavars for numbers: ``--envs-per-worker N`` fits beside its help."""
+
+
+def help_text(doc: str, default: object) -> str:
+    """``doc`` and ``(default: VALUE)``, unless ``doc`` already says its default: as a user
+    would type it (``navigation``, ``none``, a list spaced), ``%`` escaped for argparse."""
+    if not _STATES_DEFAULT.search(doc):
+        if isinstance(default, (tuple, list)):
+            shown = " ".join(map(str, default)) or "none"
+        else:
+            shown = "none" if default is None else str(default) or "''"
+        doc = f"{doc} (default: {shown})" if doc else f"(default: {shown})"
+    return doc.replace("%", "%%")
+
+
 def add_config_args(
-    parser: argparse.ArgumentParser, cls: type, prefix: str = "", only_given: bool = False
-) -> None:
+    parser: argparse.ArgumentParser,
+    cls: type,
+    prefix: str = "",
+    only_given: bool = False,
+    *,
+    groups: Mapping[str, Sequence[str]] | None = None,
+    title: str | None = None,
+) -> dict[str, Any]:
     """Add one ``--field-name`` option per field of the dataclass ``cls``.
 
     With ``only_given`` the parsed namespace holds only the flags given on the command line
     (so they can override a config file); ``--help`` still shows the dataclass defaults.
+
+    Args:
+        groups: ``{title: field names}``: ``--help`` sections, each listing its fields in this
+            order. Every field of ``cls`` must be in exactly one and every name must be a
+            field (ValueError when the parser is built: a new field cannot slip into no
+            section, nor a renamed one stay behind).
+        title: without ``groups``, one section for all the fields (none: the parser's own).
+
+    Returns:
+        The argument groups by title, for a command's own flags.
     """
-    hints = typing.get_type_hints(cls)
-    docs = field_docs(cls)
-    for f in dataclasses.fields(cls):
-        if not f.init:
-            continue
-        tp = hints[f.name]
-        flag = "--" + prefix + f.name.replace("_", "-")
-        default = f.default if f.default is not dataclasses.MISSING else f.default_factory()  # type: ignore[misc]
-        help_text = f"{docs.get(f.name, '')} (default: {default!r})"
-        if only_given:
-            default = argparse.SUPPRESS
-        origin = typing.get_origin(tp)
-        if tp is bool:
-            parser.add_argument(
-                flag,
-                dest=f.name,
-                action=argparse.BooleanOptionalAction,
-                default=default,
-                help=help_text,
-            )
-        elif origin is tuple or (
-            origin is not None and typing.get_origin(_scalar_type(tp)) is tuple
-        ):
-            inner = _scalar_type(_scalar_type(tp))
-            # "extend": a repeated flag adds to the list instead of replacing it.
-            parser.add_argument(
-                flag,
-                dest=f.name,
-                type=inner,
-                nargs="+",
-                action="extend",
-                default=default if default is argparse.SUPPRESS else list(default),
-                help=help_text,
-            )
-        else:
-            parser.add_argument(
-                flag, dest=f.name, type=_scalar_type(tp), default=default, help=help_text
-            )
+    fields = {f.name: f for f in dataclasses.fields(cls) if f.init}
+    if groups is None:
+        groups = {title or "": tuple(fields)}
+    else:
+        listed = [name for names in groups.values() for name in names]
+        unplaced = sorted(set(fields) - set(listed))
+        unknown = sorted(set(listed) - set(fields))
+        twice = sorted({name for name in listed if listed.count(name) > 1})
+        if unplaced or unknown or twice:
+            raise ValueError(f"{cls.__name__} help groups: fields in none {unplaced}, not fields "
+                             f"{unknown}, in two {twice}")  # fmt: skip
+    hints, docs = typing.get_type_hints(cls), field_docs(cls)
+    sections: dict[str, Any] = {}
+    for section, names in groups.items():
+        target = sections[section] = parser.add_argument_group(section) if section else parser
+        for name in names:
+            f = fields[name]
+            default = f.default if f.default is not dataclasses.MISSING else f.default_factory()  # type: ignore[misc]
+            _add_flag(target, "--" + prefix + name.replace("_", "-"), name, hints[name],
+                      argparse.SUPPRESS if only_given else default,
+                      help_text(docs.get(name, ""), default))  # fmt: skip
+    return sections
+
+
+def _add_flag(target: Any, flag: str, dest: str, tp: Any, default: Any, help_: str) -> None:
+    """One option of type ``tp``: a boolean ``--x/--no-x``, a list, or one value."""
+    origin = typing.get_origin(tp)
+    if tp is bool:
+        target.add_argument(flag, dest=dest, action=argparse.BooleanOptionalAction,
+                            default=default, help=help_)  # fmt: skip
+    elif origin is tuple or (origin is not None and typing.get_origin(_scalar_type(tp)) is tuple):
+        inner = _scalar_type(_scalar_type(tp))
+        # "extend": a repeated flag adds to the list instead of replacing it.
+        target.add_argument(
+            flag,
+            dest=dest,
+            type=inner,
+            nargs="+",
+            action="extend",
+            default=default if default is argparse.SUPPRESS else list(default),
+            metavar=_METAVARS.get(inner),
+            help=help_,
+        )
+    else:
+        scalar = _scalar_type(tp)
+        target.add_argument(flag, dest=dest, type=scalar, default=default,
+                            metavar=_METAVARS.get(scalar), help=help_)  # fmt: skip
 
 
 def config_from_args(cls: type[T], args: argparse.Namespace) -> T:
@@ -207,6 +251,17 @@ def _describe(tp: Any) -> str:
     return _NAMES.get(tp, str(tp))
 
 
+def check_keys(keys: Iterable[object], known: Collection[str], where: str, what: str) -> None:
+    """ConfigError naming the ``keys`` that are not in ``known`` (``what``: e.g. ``field(s)``),
+    with a "did you mean" for a single misspelt one, and the known ones."""
+    unknown = [str(key) for key in keys if key not in known]
+    if unknown:  # a hint only for a single unknown key: with several it could name either
+        hint = did_you_mean(unknown[0], known) if len(unknown) == 1 else ""
+        raise ConfigError(
+            f"{where}: unknown {what} {preview(unknown)}{hint}; known: {', '.join(sorted(known))}"
+        )
+
+
 def check_fields(cls: type, values: Mapping[str, Any], where: str) -> None:
     """ConfigError naming the first key of ``values`` that is no field of the dataclass ``cls``
     or whose value is not of the field's annotated type (``where``: e.g. ``FILE: train``).
@@ -214,12 +269,7 @@ def check_fields(cls: type, values: Mapping[str, Any], where: str) -> None:
     Checked from the annotations, so every config class gets it, before its ``__post_init__``
     compares values (``"seed": "abc"`` would otherwise fail deep inside a worker)."""
     types_ = _field_types(cls)
-    unknown = [key for key in values if key not in types_]
-    if unknown:
-        raise ConfigError(
-            f"{where}: unknown field(s) {preview(list(map(str, unknown)))}; "
-            f"known: {', '.join(sorted(types_))}"
-        )
+    check_keys(values, types_, where, "field(s)")
     for key, value in values.items():
         if not _fits(types_[key], value):
             raise ConfigError(f"{where}.{key} = {quote(value)}; expected {_describe(types_[key])}")

@@ -5,8 +5,9 @@ these, so a megabyte key or a multi-line traceback cannot flood a reply, a log o
 
 from __future__ import annotations
 
+import difflib
 import re
-from collections.abc import Collection
+from collections.abc import Collection, Iterable
 from heapq import nsmallest
 
 MAX_MESSAGE_CHARS = 2000
@@ -61,3 +62,24 @@ def quote(name: str) -> str:
     if len(name) <= MAX_PREVIEW_ITEM_CHARS:
         return repr(name)
     return f"{name[:MAX_PREVIEW_ITEM_CHARS]!r}... [{len(name) - MAX_PREVIEW_ITEM_CHARS} chars cut]"
+
+
+MAX_SUGGESTED_CHARS = 200
+"""Longest name compared for a suggestion: difflib's matching is quadratic in the length, and a
+name that long is no misspelling of a short one."""
+
+
+def did_you_mean(name: object, known: Iterable[str]) -> str:
+    """``" (did you mean 'navigation'?)"`` for the entry of ``known`` closest to a misspelt
+    ``name`` (by difflib's similarity ratio), or ``""`` when none is close.
+
+    Put right after the unknown ``name`` in an error, before its list of choices.
+    """
+    if not isinstance(name, str) or not name or len(name) > MAX_SUGGESTED_CHARS:
+        return ""
+    candidates = list(known)
+    close = difflib.get_close_matches(name, candidates, n=1, cutoff=0.6)
+    if not close:  # a case slip ("UR10" for "ur10") scores low on the characters themselves
+        folded = {c.lower(): c for c in candidates}
+        close = [folded[m] for m in difflib.get_close_matches(name.lower(), folded, n=1)]
+    return f" (did you mean {quote(close[0])}?)" if close else ""

@@ -9,12 +9,12 @@ wire, normalisation, spaces, rewards and drawing.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 from typing import ClassVar
 
 import numpy as np
 
-from robogym_ray.envs.base import RobotServerEnv
+from robogym_ray.envs.base import RobotServerEnv, restart_hint
 from robogym_ray.envs.frames import frame_xyz
 from robogym_ray.errors import InvalidStateError
 from robogym_ray.protocol import robot_server_pb2 as pb
@@ -32,6 +32,8 @@ class ArmTask(RobotServerEnv):
     """
 
     rs_mode: ClassVar[str] = "only_robot"
+    mode_keys: ClassVar[Mapping[str, Collection[str]]] = {}
+    """The arm's key set of every rs_mode, to name the mode of a server in another one."""
     joint_names: ClassVar[tuple[str, ...]]
     """Joint names in the task's order, for messages."""
     position_keys: ClassVar[tuple[str, ...]]
@@ -96,10 +98,18 @@ class ArmTask(RobotServerEnv):
         keys = set(msg.state_dict)
         if keys != self.keys:
             missing, extra = sorted(self.keys - keys), sorted(keys - self.keys)
+            served = next((m for m, k in self.mode_keys.items() if set(k) == keys), None)
+            # The mode is fixed when the server starts: only its command line can change it.
+            fix = restart_hint({"rs_mode": self.rs_mode})
+            how = (
+                f"the server runs rs_mode {served!r}: {fix}"
+                if served
+                else f"if it is this arm's server, {fix}"
+            )
             raise InvalidStateError(
                 f"robot server state keys do not match rs_mode {self.rs_mode!r}: "
                 f"missing {missing[:5]}{'...' if len(missing) > 5 else ''}, extra {extra[:5]} "
-                f"({len(keys)} keys, expected {len(self.keys)}; {self._where()})"
+                f"({len(keys)} keys, expected {len(self.keys)}); {how} ({self._where()})"
             )
         return msg
 

@@ -53,6 +53,13 @@ from robogym_ray.protocol.client import Deadlines, RobotServerClient, check_acti
 StepInfo = dict[str, Any]
 
 
+def restart_hint(options: Mapping[str, str]) -> str:
+    """How to restart a robot server with ``options``, for both kinds a user may run."""
+    ours = " ".join(f"{k}={v}" for k, v in options.items())
+    ros = " ".join(f"{k}:={v}" for k, v in options.items())
+    return f"restart it with --option {ours}, or {ros} for robo-gym's launch file"
+
+
 class RobotServerEnv(gym.Env[np.ndarray, np.ndarray]):
     """Common Sim/Real machinery; subclasses define the task (see the module docstring).
 
@@ -306,20 +313,22 @@ class RobotServerEnv(gym.Env[np.ndarray, np.ndarray]):
         if args is None:
             return
         options = self.server_spec()[2]
+        wrong: dict[str, tuple[str, str]] = {}  # name: (what the server runs, what is needed)
         rate = options.get("action_cycle_rate")
         if rate is not None and not math.isclose(args.action_cycle_rate, float(rate), rel_tol=1e-4):
-            self._refuse_server("action_cycle_rate", f"{args.action_cycle_rate:g}", rate)
+            wrong["action_cycle_rate"] = (f"{args.action_cycle_rate:g}", rate)
         for name in ("rs_mode", "action_mode"):
             want, got = options.get(name), getattr(args, name)
             if want is not None and got and got != want:
-                self._refuse_server(name, got, want)
-
-    def _refuse_server(self, name: str, got: str, want: str) -> None:
-        address = getattr(self.client, "address", "?")
-        raise ConfigError(
-            f"{type(self).__name__}: the robot server at {address} runs {name} {got}, "
-            f"this task needs {want} (restart it with {name}:={want})"
-        )
+                wrong[name] = (got, want)
+        if wrong:  # all of them at once: a restart that fixes one would meet the next
+            address = getattr(self.client, "address", "?")
+            runs = " and ".join(f"{name} {got}" for name, (got, _) in wrong.items())
+            needs = " and ".join(want for _, want in wrong.values())
+            raise ConfigError(
+                f"{type(self).__name__}: the robot server at {address} runs {runs}, this task "
+                f"needs {needs} ({restart_hint({k: want for k, (_, want) in wrong.items()})})"
+            )
 
     def _disconnect(self) -> None:
         if self.client is not None:

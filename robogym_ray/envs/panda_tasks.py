@@ -58,6 +58,7 @@ class PandaTask(ArmTask):
 
     metadata: ClassVar[dict[str, Any]] = {**RobotServerEnv.metadata, "render_fps": 30}
     joint_names = JOINT_NAMES
+    mode_keys = RS_MODE_KEYS
     position_keys = POSITION_KEYS
     velocity_keys = VELOCITY_KEYS
     world: ClassVar[str] = "empty_no_gravity.world"

@@ -23,6 +23,7 @@ from robogym_ray.protocol import robot_server_pb2 as pb
 from robogym_ray.protocol.client import RobotServerClient
 from robogym_ray.robots.ur.geometry import POSITION_LIMITS, ROS_FROM_ENV, UR_MODELS
 from robogym_ray.robots.ur.state import JOINT_KEYS, POSITION_KEYS, RS_MODE_KEYS, VELOCITY_KEYS
+from robogym_ray.text import did_you_mean
 
 # The arm's geometry, limits and key names are the robot's (robots/ur/), defined there once.
 JOINTS = JOINT_KEYS
@@ -59,6 +60,7 @@ class URTask(ArmTask):
     metadata: ClassVar[dict[str, Any]] = {**RobotServerEnv.metadata, "render_fps": 20}
     """Frames at the action rate (20 Hz)."""
     joint_names = JOINTS
+    mode_keys = RS_MODE_KEYS
     position_keys = POSITION_KEYS
     velocity_keys = VELOCITY_KEYS
     scene: ClassVar[str] = "empty"
@@ -72,7 +74,9 @@ class URTask(ArmTask):
     ) -> None:
         super().__init__(**kwargs)
         if ur_model not in UR_MODELS:
-            raise ConfigError(f"unknown ur_model {ur_model!r}; choose from {sorted(UR_MODELS)}")
+            hint = did_you_mean(ur_model, UR_MODELS)
+            known = sorted(UR_MODELS)
+            raise ConfigError(f"unknown ur_model {ur_model!r}{hint}; choose from {known}")
         self.ur_model = ur_model
         self.model = UR_MODELS[ur_model]
         fixed = tuple(self.default_fixed if fixed_joints is None else fixed_joints)

@@ -227,6 +227,11 @@ class RobotCard:
     """Limits of the real robot's commands; None: no real robot known (Rob variants refuse)."""
     emulation: EmulationHooks = field(default_factory=EmulationHooks)
     """How hardware emulation scales and perturbs this robot."""
+    serve_env: str | None = None
+    """The env id whose server a plain ``robogym-ray serve --robot NAME`` starts: the scene and
+    launch options of its ``server_spec()`` are serve's defaults (``--scene`` and each
+    ``--option`` replace theirs), so the robot's README env needs no option. None: the launch
+    file's defaults. The server manager ignores it: robo-gym's envs send their options."""
 
     def __post_init__(self) -> None:
         if self.kind not in ("arm", "base"):

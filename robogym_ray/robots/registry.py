@@ -13,6 +13,7 @@ from collections.abc import Callable, Mapping
 from robogym_ray.errors import UnknownRobotError
 from robogym_ray.robots.base import SimRobot
 from robogym_ray.robots.card import RobotCard
+from robogym_ray.text import did_you_mean, quote
 
 CARD_MODULES: tuple[str, ...] = (
     "robogym_ray.robots.mir100.card",
@@ -53,7 +54,8 @@ def robot_card(name: str) -> RobotCard:
         return CARDS[name]
     except KeyError:
         raise UnknownRobotError(
-            f"unknown robot {name!r}; known robots: {', '.join(sorted(CARDS))}"
+            f"unknown robot {quote(name)}{did_you_mean(name, CARDS)}; "
+            f"known robots: {', '.join(sorted(CARDS))}"
         ) from None
 
 

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from robogym_ray.config import add_config_args, check_port, config_from_args
 from robogym_ray.errors import ConfigError
 from robogym_ray.robots.emulation import EmulationConfig
-from robogym_ray.robots.registry import CARDS
+from robogym_ray.robots.registry import robot_card
 from robogym_ray.robots.server import start_robot_server
 
 log = logging.getLogger(__name__)
@@ -28,7 +28,7 @@ class ServeConfig:
     """What ``robogym-ray serve`` starts."""
 
     robot: str = "mir100"
-    """Robot model: mir100, ur3, ur3e, ur5, ur5e, ur10, ur10e or ur16e."""
+    """Robot model: mir100, panda, ur3, ur3e, ur5, ur5e, ur10, ur10e or ur16e."""
     scene: str | None = None
     """Scene name (mir100: lab_6x8, empty; UR: empty, tabletop); default: the robot's own."""
     host: str = "127.0.0.1"
@@ -44,7 +44,9 @@ class ServeConfig:
     token: str | None = None
     """Shared token clients must send as gRPC metadata 'robogym-token' (or ROBOGYM_RAY_TOKEN)."""
     option: tuple[str, ...] = ()
-    """Robot options as robo-gym launch arguments, e.g. rs_mode=1object action_cycle_rate=10."""
+    """Robot options as robo-gym launch arguments, e.g. rs_mode=only_robot action_cycle_rate=20.
+    Default: those of the robot's README env, a UR arm's EndEffectorPositioning (rs_mode=1object
+    action_cycle_rate=10 ...); each option given replaces its own."""
 
     def __post_init__(self) -> None:
         check_port(self.port, "ServeConfig.port (--port)")
@@ -96,26 +98,45 @@ def serve_process(args: Sequence[str], timeout_s: float = 20.0) -> Iterator[str]
                 proc.wait()
 
 
+def serve_defaults(
+    env_id: str | None, scene: str | None, given: dict[str, str]
+) -> tuple[str | None, dict[str, str]]:
+    """The scene and launch options to serve: ``env_id``'s (a card's ``serve_env``) where the
+    command line gives none. A given ``world_name`` stands for the scene, and a given
+    ``target_mode`` for ``rs_mode`` (the launch file reads it when rs_mode is unset)."""
+    if env_id is None:
+        return scene, given
+    from robogym_ray.envs.registration import server_spec_of  # gymnasium: only when needed
+
+    _, env_scene, options = server_spec_of(env_id)
+    if "target_mode" in given:
+        options.pop("rs_mode", None)
+    if scene is None and "world_name" not in given:
+        scene = env_scene
+    return scene, {**options, **given}
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    add_config_args(parser, ServeConfig)
-    add_config_args(parser, EmulationConfig, prefix="emu-")
+    parser.usage = "%(prog)s [--robot NAME] [--port PORT] [--option KEY=VALUE ...] [options]"
+    add_config_args(parser, ServeConfig, title="robot server")
+    add_config_args(parser, EmulationConfig, prefix="emu-", title="emulated hardware (with "
+                    "--emulate-hardware)")  # fmt: skip
 
 
 def run(args: argparse.Namespace) -> int:
     cfg = config_from_args(ServeConfig, args)
-    if cfg.robot not in CARDS:
-        print(f"error: unknown robot {cfg.robot!r}; choose from {sorted(CARDS)}", file=sys.stderr)
-        return 2
+    card = robot_card(cfg.robot)  # an unknown name: UnknownRobotError, with a "did you mean"
     token = cfg.token or os.environ.get("ROBOGYM_RAY_TOKEN") or None
     if not is_loopback(cfg.host) and token is None:
         log.warning(
             "listening on %s without a token: anyone who reaches it can move the robot", cfg.host
         )
+    scene, options = serve_defaults(card.serve_env, cfg.scene, parse_options(cfg.option))
     handle = start_robot_server(
         cfg.robot,
-        scene=cfg.scene,
+        scene=scene,
         seed=cfg.seed,
-        options=parse_options(cfg.option),
+        options=options,
         host=cfg.host,
         port=cfg.port,
         real_time=cfg.real_time,

@@ -14,7 +14,7 @@ import math
 from collections.abc import Collection, Iterable, Mapping
 
 from robogym_ray.errors import ConfigError, InvalidStateError, RoboGymRayError, UnknownRobotError
-from robogym_ray.text import quote
+from robogym_ray.text import did_you_mean, quote
 
 
 def check_range(
@@ -75,7 +75,8 @@ def check_option_names(robot: str, names: Iterable[str], known: Collection[str])
     for name in names:
         if name not in known:
             listed = ", ".join(sorted(known))
-            raise ConfigError(f"unknown {robot} option {quote(name)}; known: {listed}")
+            hint = did_you_mean(name, known)
+            raise ConfigError(f"unknown {robot} option {quote(name)}{hint}; known: {listed}")
 
 
 def resolve_scene(
@@ -97,8 +98,11 @@ def resolve_scene(
     for name in (n for n in (scene, world_name) if n is not None):
         key = worlds.get(name, name)
         if key not in scenes:
-            known = ", ".join([*sorted(scenes), *sorted(worlds)])
-            raise UnknownRobotError(f"unknown {robot} scene/world {quote(name)}; known: {known}")
+            names = [*sorted(scenes), *sorted(worlds)]
+            hint = did_you_mean(name, names)
+            raise UnknownRobotError(
+                f"unknown {robot} scene/world {quote(name)}{hint}; known: {', '.join(names)}"
+            )
         resolved.append(key)
     if len(set(resolved)) > 1:
         raise ConfigError(f"scene {scene!r} contradicts option world_name={world_name!r}")

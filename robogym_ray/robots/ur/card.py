@@ -67,6 +67,10 @@ def _card(model: URModel) -> RobotCard:
         ),
         launch=LaunchFamily(LAUNCH_FILE, MODEL_ARGUMENT, model.name),
         state=_STATE,
+        # The README's UR10 env, whose options (rs_mode 1object, 10 Hz, ...) are the same for
+        # every model; the launch file's defaults (rs_mode only_robot, 25 Hz) serve no task
+        # but EmptyEnvironment, and that one at another rate.
+        serve_env="RoboGymRay/EndEffectorPositioningUR10Rob-v0",
         factory="robogym_ray.robots.ur.model:make_ur",
         option_parser="robogym_ray.robots.ur.config:parse_options",
     )
