@@ -10,6 +10,9 @@ Isaac Lab export (``--isaac-lab``: rsl_rl ``play.py``'s ``policy.pt`` or ``polic
     robogym-ray run-policy --isaac-lab policy.onnx --env-id RoboGymRay/IsaacReachUR10Rob-v0 \\
         --rs-address ROBOT:50051 --token T --via-actor                # the robot, filtered
 
+``--io-descriptors IO_descriptors.yaml`` (Isaac Lab 3) checks the policy against the env before
+the first action and applies its action term's scale, offset and clip (docs/isaac-lab.md).
+
 Without ``--rs-address`` the task's Sim variant runs in this process; with it, the robot server
 at that address (real or ``serve --emulate-hardware``) is driven through the Rob variant, and
 ``--via-actor`` puts the real-robot safety filter in between.
@@ -23,6 +26,7 @@ from robogym_ray.config import add_config_args, config_from_args
 from robogym_ray.errors import ConfigError
 from robogym_ray.evaluation import EvaluationConfig, evaluate, report
 from robogym_ray.export import sidecar_path
+from robogym_ray.storage import local_file
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -35,7 +39,7 @@ def run(args: argparse.Namespace) -> int:
     cfg = config_from_args(EvaluationConfig, args)
     if (args.policy is None) == (args.policy_file is None):
         raise ConfigError("run-policy takes one policy file: POLICY or --policy PATH")
-    policy = args.policy or args.policy_file
+    policy = local_file(args.policy or args.policy_file, "policy")  # s3://... downloaded
     if not cfg.isaac_lab and not sidecar_path(policy).exists():
         raise ConfigError(
             f"{policy} has no {sidecar_path(policy).name}: export it with "

@@ -231,12 +231,14 @@ def test_the_robot_is_driven_through_the_real_robot_safety_filter(
     assert result.env_id == "RoboGymRay/IsaacReachUR10Rob-v0" and result.episodes[0].length == 4
 
 
-def doc_commands(program: str) -> list[list[str]]:
-    """docs/isaac-lab.md's ``robogym-ray PROGRAM ...`` command lines, arguments after it."""
+def doc_commands(program: str, part: int = 0) -> list[list[str]]:
+    """docs/isaac-lab.md's ``robogym-ray PROGRAM ...`` command lines, arguments after it, in
+    the page's ``part``-th top-level section (0: robo-gym 2.1.0's reach, 1: Isaac Lab 3's)."""
     import re
     import shlex
 
-    text = (Path(__file__).resolve().parents[2] / "docs" / "isaac-lab.md").read_text()
+    page = (Path(__file__).resolve().parents[2] / "docs" / "isaac-lab.md").read_text()
+    text = page.split("\n# ")[part]
     code = "\n".join(re.findall(r"```bash\n(.*?)```", text, re.S)).replace("\\\n", " ")
     commands = [shlex.split(line, comments=True) for line in code.splitlines()]
     return [c[2:] for c in commands if c[:2] == ["robogym-ray", program]]
