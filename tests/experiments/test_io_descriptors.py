@@ -313,29 +313,8 @@ def test_isaac_reach_ur10_declares_isaac_lab_2s_terms(tmp_path, capsys) -> None:
 @pytest.mark.slow
 @pytest.mark.usefixtures("ray_cluster")
 def test_the_deploy_parts_commands_run(exported, tmp_path, capsys) -> None:
-    """docs/isaac-lab.md's Isaac Lab 3 commands as written, with this test's files for POLICY
-    and IO, a free port for the server, folders of its own and one short episode each."""
-    from robogym_ray.cli import main as cli_main
-    from robogym_ray.robots.serve import serve_process
-    from tests.experiments.test_isaac_lab import doc_commands
+    """docs/isaac-lab.md's Isaac Lab 3 commands as written, IO this test's descriptors."""
+    from tests.experiments.test_isaac_lab import run_page_commands
 
     pt, onnx, _, io = exported
-    (serve,) = doc_commands("serve", part=1)
-    with serve_process(["0" if a == "50051" else a for a in serve]) as address:
-        runs = [("run-policy", a) for a in doc_commands("run-policy", part=1)]
-        runs += [("evaluate", a) for a in doc_commands("evaluate", part=1)]
-        assert len(runs) == 4
-        for k, (program, argv) in enumerate(runs):
-            swap = {
-                "POLICY": str(onnx if k % 2 else pt),
-                "IO": str(io),
-                "ROBOT:50051": address,
-                "127.0.0.1:50051": address,
-            }
-            argv = [swap.get(a, str(tmp_path / a) if a.startswith("ev-") else a) for a in argv]
-            if "--token" in argv:  # the emulated server wants none
-                del argv[argv.index("--token") : argv.index("--token") + 2]
-            argv[argv.index("--episodes") + 1] = "1"
-            assert cli_main([program, *argv, "--max-steps", "3"]) == 0, argv
-            summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
-            assert summary["n_episodes"] == 1
+    run_page_commands(1, (pt, onnx), tmp_path, capsys, {"IO": str(io)})

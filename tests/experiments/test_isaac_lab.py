@@ -244,21 +244,20 @@ def doc_commands(program: str, part: int = 0) -> list[list[str]]:
     return [c[2:] for c in commands if c[:2] == ["robogym-ray", program]]
 
 
-@pytest.mark.ray
-@pytest.mark.slow
-@pytest.mark.usefixtures("ray_cluster")
-def test_the_pages_commands_run(ur10_files, tmp_path, capsys) -> None:
-    """Every robogym-ray command of docs/isaac-lab.md as written, with this test's policy files
-    for POLICY, a free port for the server, folders of its own and one short episode each."""
-    pt, onnx, _ = ur10_files
-    (serve,) = doc_commands("serve")
+def run_page_commands(
+    part: int, policies: tuple[Path, Path], tmp_path: Path, capsys, extra: dict | None = None
+) -> None:
+    """Every robogym-ray command of the page's ``part`` as written: the two policy files for
+    POLICY in turn, ``extra`` for other placeholders, a free port for the server, folders of
+    its own and one short episode each."""
+    (serve,) = doc_commands("serve", part)
     with serve_process(["0" if a == "50051" else a for a in serve]) as address:
-        runs = [("run-policy", a) for a in doc_commands("run-policy")]
-        runs += [("evaluate", a) for a in doc_commands("evaluate")]
+        runs = [("run-policy", a) for a in doc_commands("run-policy", part)]
+        runs += [("evaluate", a) for a in doc_commands("evaluate", part)]
         assert len(runs) == 4
         for k, (program, argv) in enumerate(runs):
-            swap = {"POLICY": str(onnx if k % 2 else pt), "ROBOT:50051": address,
-                    "127.0.0.1:50051": address}  # fmt: skip
+            swap = {"POLICY": str(policies[k % 2]), "ROBOT:50051": address,
+                    "127.0.0.1:50051": address, **(extra or {})}  # fmt: skip
             argv = [swap.get(a, str(tmp_path / a) if a.startswith("ev-") else a) for a in argv]
             if "--token" in argv:  # the emulated server wants none
                 del argv[argv.index("--token") : argv.index("--token") + 2]
@@ -266,3 +265,12 @@ def test_the_pages_commands_run(ur10_files, tmp_path, capsys) -> None:
             assert cli_main([program, *argv, "--max-steps", "3"]) == 0, argv
             summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
             assert summary["n_episodes"] == 1
+
+
+@pytest.mark.ray
+@pytest.mark.slow
+@pytest.mark.usefixtures("ray_cluster")
+def test_the_pages_commands_run(ur10_files, tmp_path, capsys) -> None:
+    """Every robogym-ray command of docs/isaac-lab.md's robo-gym 2.1.0 part (run_page_commands)."""
+    pt, onnx, _ = ur10_files
+    run_page_commands(0, (pt, onnx), tmp_path, capsys)
