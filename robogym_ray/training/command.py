@@ -13,6 +13,7 @@ from robogym_ray.config import (
     add_config_args,
     check_dir_path,
     check_fields,
+    check_keys,
     merge_config,
     quote,
     read_json,
@@ -37,11 +38,36 @@ class TrainSetup:
     """What the emulated workers' robots differ by (used when train.emulated_workers > 0)."""
 
 
+HELP_GROUPS: dict[str, tuple[str, ...]] = {
+    "run": ("task", "total_steps", "max_wall_s", "seed", "config", "run_name", "resume",
+            "logdir", "log_every_s", "progress"),
+    "workers and paths": ("workers", "envs_per_worker", "sim_path", "emulated_workers",
+                          "address", "num_cpus", "worker_cpus", "learner_cpus", "server_cpus",
+                          "evaluator_cpus", "learner_gpus", "learner_resource",
+                          "worker_resource", "spread_workers", "evaluator_resource",
+                          "server_resource"),
+    "D4PG (the workers' side; the learner's settings are the config file's d4pg section)": (
+        "steps_per_call", "weight_sync_steps", "random_steps", "sigma_min",
+        "sigma_decay_start", "sigma_decay_steps", "sigma_final_scale", "revisit_failed",
+        "revisit_pool", "revisit_max"),
+    "evaluation": ("evaluator", "eval_interval_s", "final_eval_episodes", "video_interval_s",
+                   "select_episodes", "policy_snapshot_every_s"),
+    "faults and storage": ("storage", "init_from", "checkpoint_every", "save_replay",
+                           "replay_snapshot_every_s", "worker_deadline_s"),
+    "real robots": ("real_robot", "token", "real_robot_wait_s"),
+}  # fmt: skip
+"""``train --help``'s sections: every TrainConfig field in one (a new field in none fails the
+parser's build, so every CLI test; add it here)."""
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    # The full usage would list every flag (~50 lines) above the sections that list them.
+    parser.usage = "%(prog)s [--task TASK] [--workers N] [--config FILE] [options]"
     # Only flags given on the command line override the config file.
-    add_config_args(parser, TrainConfig, only_given=True)
-    add_config_args(parser, EmulationConfig, prefix="emu-", only_given=True)
-    parser.add_argument(
+    sections = add_config_args(parser, TrainConfig, only_given=True, groups=HELP_GROUPS)
+    add_config_args(parser, EmulationConfig, prefix="emu-", only_given=True,
+                    title="emulated robots (for --emulated-workers)")  # fmt: skip
+    sections["run"].add_argument(
         "--json",
         action="store_true",
         help="print the run's summary as one JSON line (it is always in RUN_DIR/summary.json)",
@@ -65,10 +91,12 @@ def read_sections(path: str | Path, _chain: tuple[Path, ...] = ()) -> dict[str, 
     if chain[-1] in _chain:
         raise ConfigError(f"{path}: 'extends' forms a cycle: {' -> '.join(map(str, chain))}")
     data = read_json(path)
-    if not isinstance(data, dict) or set(data) - {*SECTIONS, "extends"}:
+    if not isinstance(data, dict):
         raise ConfigError(
-            f"{path}: expected a JSON object with keys among {', '.join(SECTIONS)} and 'extends'"
+            f"{path}: expected a JSON object with keys among {', '.join(SECTIONS)} and 'extends', "
+            f"got a JSON {type(data).__name__}"
         )
+    check_keys(data, (*SECTIONS, "extends"), str(path), "top-level key(s)")
     for name, section in data.items():
         if name != "extends" and not isinstance(section, dict):
             raise ConfigError(f"{path}: section {name!r} must be a JSON object")
@@ -103,6 +131,7 @@ def check_inputs(setup: TrainSetup) -> None:
     task, the D4PG settings, the log directory, the local Ray's CPUs and ``--init-from``."""
     from robogym_ray.experience.rollout import box_dims, make_gym_env
     from robogym_ray.learner.checkpoint import CHECKPOINT_NAME
+    from robogym_ray.storage import RunStorage, is_uri
     from robogym_ray.training import setup as run_setup
     from robogym_ray.training.presets import d4pg_for, resolve_task
 
@@ -112,17 +141,21 @@ def check_inputs(setup: TrainSetup) -> None:
     except ConfigError as exc:  # its message repeats the name whole: a 1 MB one too
         raise ConfigError(str(exc).replace(repr(cfg.task), quote(cfg.task))) from None
     d4pg = d4pg_for(preset, setup.d4pg)
-    logdir = Path(cfg.logdir)
-    check_dir_path(logdir / cfg.run_name if cfg.run_name else logdir, "--logdir/--run-name")
+    root = run_setup.storage_root(cfg)
+    if not is_uri(root):
+        local = Path(root) / cfg.run_name if cfg.run_name else Path(root)
+        check_dir_path(local, "--storage/--logdir/--run-name")
     if cfg.address is None:  # the local Ray gets num_cpus, or (at most) all of this machine
         run_setup.check_resources(cfg, cfg.num_cpus or float(os.cpu_count() or 1))
-    # A re-run whose directory has its own checkpoint continues from it and ignores
-    # --init-from (seed_checkpoint); that checkpoint is checked the same way (a re-run with
-    # other network sizes would otherwise crash its learner actor after Ray started).
-    own = logdir / cfg.run_name / "checkpoints" / CHECKPOINT_NAME if cfg.run_name else None
     init_from, label = cfg.init_from, "--init-from"
-    if own is not None and own.exists():
-        init_from, label = str(own), "this run's own checkpoint (a re-run continues from it)"
+    if cfg.run_name:  # a taken name without --resume, or --resume of another task: refused
+        run_setup.check_run_name(cfg, preset.env_id)
+        if cfg.resume:
+            # A resumed run continues from its own checkpoint and ignores --init-from
+            # (seed_checkpoint); checked the same way (other network sizes would otherwise
+            # crash its learner actor after Ray started).
+            own = RunStorage(root).child(cfg.run_name).location(f"checkpoints/{CHECKPOINT_NAME}")
+            init_from, label = own, "--resume: the run's checkpoint"
     # The file first: probing the env below imports pybullet, whose banner goes to stderr.
     state = run_setup.read_init_from(init_from, label) if init_from else None
     probe = make_gym_env(preset.env_id)()  # dimensions only: it never resets, so no server
@@ -154,13 +187,17 @@ def _rates(summary: dict[str, Any], prefix: str) -> str:
 
 
 def summary_text(summary: dict[str, Any]) -> str:
-    """A few lines for a person: what was trained, how it went, where its files are."""
-    logdir = Path(summary["logdir"])
-    lines = [
-        f"Trained {summary['task']}: {summary['env_steps']:,} env steps, "
-        f"{summary['episodes']:,} episodes, {summary['learner_steps']:,} learner steps "
-        f"in {summary['wall_s']:.1f} s."
-    ]
+    """A few lines for a person: how the run ended, how it went, where its files are."""
+    root = str(summary["logdir"])
+    done = (
+        f"{summary['env_steps']:,} env steps, {summary['episodes']:,} episodes, "
+        f"{summary['learner_steps']:,} learner steps in {summary['wall_s']:.1f} s."
+    )
+    if summary.get("ended") == "stopped":
+        by = summary.get("stopped_by", "a signal")
+        lines = [f"Stopped early by {by}: {summary['task']} trained {done}"]
+    else:
+        lines = [f"Trained {summary['task']}: {done}"]
     if "train/success_rate" in summary:
         # Over the last 100 episodes that were not revisits (RunStats), fewer in a short run.
         counted = min(100, summary["episodes"] - summary.get("revisited_episodes", 0))
@@ -171,11 +208,13 @@ def summary_text(summary: dict[str, Any]) -> str:
         last = f"last {min(100, total)} of {total}"
         lines.append(f"  greedy evaluation ({last} episodes): {_rates(summary, 'eval')}")
     restarts = sum(summary["restarts"].values())
+    node = summary.get("storage", {}).get("node", "")
     lines += [
         f"  faults: {restarts} server restarts, {summary['dropped_steps']} dropped steps, "
         f"{summary['robot_errors']} robot errors",
+        f"  files:       {root}/" + (f"  (on {node})" if node else ""),
         f"  checkpoint:  {summary['checkpoint']}",
-        f"  TensorBoard: tensorboard --logdir {logdir}",
-        f"  summary:     {logdir / 'summary.json'} (or pass --json)",
+        f"  TensorBoard: tensorboard --logdir {root}",
+        f"  summary:     {root}/summary.json (or pass --json)",
     ]
     return "\n".join(lines)

@@ -15,8 +15,8 @@ class TrainConfig:
     """One distributed D4PG run."""
 
     task: str = "navigation"
-    """Env id (e.g. RoboGymRay/ObstacleAvoidanceMir100Sim-v0) or short name: navigation,
-    navigation-sectors, positioning, pendulum."""
+    """Env id (e.g. RoboGymRay/ObstacleAvoidanceMir100Sim-v0) or a preset's short name:
+    navigation, positioning, pendulum, ... (robogym_ray/training/presets.py has them all)."""
     workers: int = 2
     """Simulated rollout workers (each steps --envs-per-worker simulated robots)."""
     envs_per_worker: int = 4
@@ -50,9 +50,20 @@ class TrainConfig:
     max_wall_s: float | None = None
     """Stop collecting after this many seconds of training, even before total_steps."""
     logdir: str = "runs"
-    """TensorBoard root; each run writes to LOGDIR/RUN_NAME."""
+    """Where runs' files go when --storage is not given (a path; made absolute here)."""
+    storage: str | None = None
+    """Where every file of the run goes, under STORAGE/RUN_NAME/, from whichever node writes
+    it: a path (in a multi-node run, one every node mounts, e.g. NFS: a node-local path is
+    refused before anything starts) or an object store URI (s3://bucket/prefix, gs://...;
+    an S3-compatible server via ?endpoint_override=HOST:PORT&scheme=http or AWS_ENDPOINT_URL).
+    A relative path in a submitted Ray job goes under ~/robogym_ray_results on the head.
+    Default: --logdir."""
     run_name: str | None = None
-    """Run directory name (default: task and time)."""
+    """Run folder name; one that holds a run already is refused unless --resume (default: the
+    task and the time, never an existing one)."""
+    resume: bool = False
+    """Continue the run in STORAGE/RUN_NAME from its checkpoint (same task and networks: checked
+    before Ray starts) instead of refusing a run name that is taken."""
     seed: int = 0
     """Seed of worker i is seed + i; the learner uses seed."""
     address: str | None = None
@@ -136,6 +147,16 @@ class TrainConfig:
     """Ray CPUs reserved for the evaluator."""
     learner_gpus: float = -1.0
     """GPUs for the learner: -1 = one if the cluster has any, else 0."""
+    learner_resource: str | None = None
+    """Custom Ray resource the learner requires (e.g. one that only a GPU node has); it is
+    restarted only on nodes that have it too."""
+    worker_resource: str | None = None
+    """Custom Ray resource every rollout worker requires (e.g. the CPU nodes')."""
+    spread_workers: bool = True
+    """Spread rollout workers over the nodes that fit them (Ray's SPREAD), rather than fill
+    one node first."""
+    evaluator_resource: str | None = None
+    """Custom Ray resource the evaluator requires."""
     server_resource: str | None = None
     """Custom Ray resource the simulations require (places them on the nodes that have it): the
     robot-server actors with --sim-path grpc, the simulated workers with inprocess."""
