@@ -16,7 +16,7 @@ from collections.abc import Sequence
 from robogym_ray.errors import RoboGymRayError
 
 COMMANDS: dict[str, tuple[str, str]] = {
-    "serve": ("robogym_ray.robots.serve", "Start a standalone robot server (robo-gym protocol)."),
+    "serve": ("robogym_ray.serve", "Start a standalone robot server (robo-gym protocol)."),
     "manager": ("robogym_ray.distributed.manager", "Serve robo-gym's server manager (supervised)."),
     "resume": ("robogym_ray.distributed.resume", "Resume a paused real robot (operator)."),
     "train": ("robogym_ray.training.command", "Train D4PG with rollout workers on Ray."),

@@ -11,9 +11,10 @@ from robogym_ray.envs.ur_tasks import EndEffectorPositioningUR
 from robogym_ray.errors import ConfigError, InvalidStateError
 from robogym_ray.protocol import robot_server_pb2 as pb
 from robogym_ray.robots.registry import CARDS, check_options
-from robogym_ray.robots.serve import serve_defaults, serve_process
+from robogym_ray.robots.serve import serve_process
 from robogym_ray.robots.server import start_robot_server
 from robogym_ray.robots.ur.state import RS_MODE_KEYS
+from robogym_ray.serve import serve_defaults
 from tests.envs.conftest import success_for
 
 UR10_ROB = "RoboGymRay/EndEffectorPositioningUR10Rob-v0"
