@@ -15,7 +15,7 @@ bounds (robo-gym 2.1.0 does not clip them: docs/protocol.md). The ONNX file need
 ``onnxruntime`` (the ``onnx`` extra), not torch.
 
 With Isaac Lab 3's ``IO_descriptors.yaml`` beside it (``io_descriptors``), the file is checked
-against the env before the first action (``robogym_ray.io_descriptors``) and its action term's
+against the env before the first action (``robogym_ray.envs.io_descriptors``) and its action term's
 scale, offset and clip are what turns the network's output into the joint command.
 """
 
@@ -27,9 +27,9 @@ from typing import Any
 
 import numpy as np
 
+from robogym_ray.envs.io_descriptors import check as check_io
+from robogym_ray.envs.io_descriptors import load as io_descriptors_load
 from robogym_ray.errors import ConfigError
-from robogym_ray.io_descriptors import check as check_io
-from robogym_ray.io_descriptors import load as io_descriptors_load
 from robogym_ray.learner.behaviour import from_env_action
 from robogym_ray.onnx_policy import OnnxPolicy
 from robogym_ray.text import reason

@@ -90,7 +90,10 @@ def test_the_low_layers_stay_low() -> None:
     graph = folder_graph()
     leaves = {"errors", "text"}  # import nothing of the package: every layer may use them
     assert not graph["errors"] and not graph["text"], (graph["errors"], graph["text"])
-    assert graph["learner"] <= leaves | {"config"}, graph["learner"]
+    # A run's storage (files on a shared path or an object store) sits just above the leaves:
+    # the learner writes its checkpoints through it.
+    assert graph["storage"] <= leaves, graph["storage"]
+    assert graph["learner"] <= leaves | {"config", "storage"}, graph["learner"]
     assert graph["protocol"] <= leaves, graph["protocol"]
     # Supervision (restart policy, health checks) sits below the envs: an env that runs its
     # robot in process supervises it with the supervisor's own rules.

@@ -28,7 +28,7 @@ _URA = "robogym_ray.envs.ur_avoidance:"
 _PANDA = "robogym_ray.envs.panda_tasks:"
 _URM = "robogym_ray.envs.ur_modular:"
 _PANDAM = "robogym_ray.envs.panda_modular:"
-_DEPLOY = "robogym_ray.envs.isaac_deploy_reach:"
+_DEPLOY = "robogym_ray.envs.ur_deploy_reach:"
 
 RobotVariant = tuple[str, dict[str, Any]]
 """(robot as spelled in the id, env kwargs that pick it)."""
@@ -140,9 +140,9 @@ def env_spec(env_id: str) -> EnvSpec:
         raise ConfigError(f"unknown env id {quote(env_id)}{hint}{why}") from None
 
 
-def env_robot(env_id: str) -> str:
-    """The registry name of the robot ``env_id`` drives (``mir100``, ``ur10`` ...): the first
-    element of its ``server_spec()``, read from an env that is built but never connected.
+def server_spec_of(env_id: str) -> tuple[str, str | None, dict[str, str]]:
+    """``(robot, scene, launch options)`` of the robot server ``env_id`` asks for: its
+    ``server_spec()``, read from an env that is built but never connected.
 
     Raises:
         ConfigError: ``env_id`` is not registered.
@@ -152,6 +152,15 @@ def env_robot(env_id: str) -> str:
     # A Rob env with a placeholder address builds no server and opens no connection.
     env = cls(**{**spec.kwargs, "real_robot": True, "rs_address": "127.0.0.1:1"})
     try:
-        return env.server_spec()[0]
+        return env.server_spec()
     finally:
         env.close()
+
+
+def env_robot(env_id: str) -> str:
+    """The registry name of the robot ``env_id`` drives (``mir100``, ``ur10`` ...).
+
+    Raises:
+        ConfigError: ``env_id`` is not registered.
+    """
+    return server_spec_of(env_id)[0]

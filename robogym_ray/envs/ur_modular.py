@@ -10,10 +10,10 @@ from __future__ import annotations
 import math
 from typing import Any, ClassVar
 
+from robogym_ray.envs.io_descriptors import ActionTermSpec, IOContract, ObsTerm
 from robogym_ray.envs.isaac_reach import WORLD, IsaacReachTask
 from robogym_ray.envs.modular import ModularArmTask, PoseTask
 from robogym_ray.envs.ur_common import JOINT_MAX, URTask
-from robogym_ray.io_descriptors import ActionTermSpec, IOContract, ObsTerm
 from robogym_ray.robots.ur.geometry import BASE_HEIGHT_OPTION, JOINT_NAMES
 
 ROBO_GYM_JOINTS = ("shoulder_pan", "shoulder_lift", "elbow_joint", "wrist_1", "wrist_2", "wrist_3")

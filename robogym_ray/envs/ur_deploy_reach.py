@@ -22,12 +22,12 @@ from scipy.spatial.transform import Rotation
 
 from robogym_ray.envs.base import StepInfo
 from robogym_ray.envs.frames import frame_quat, frame_xyz
+from robogym_ray.envs.io_descriptors import ActionTermSpec, IOContract, ObsTerm
 from robogym_ray.envs.modular import PoseTask
 from robogym_ray.envs.pose_targets import sample_target_pose
 from robogym_ray.envs.ur_common import URTask
 from robogym_ray.envs.ur_modular import UR2Arm
 from robogym_ray.errors import ConfigError
-from robogym_ray.io_descriptors import ActionTermSpec, IOContract, ObsTerm
 from robogym_ray.protocol import robot_server_pb2 as pb
 from robogym_ray.protocol.client import RobotServerClient
 from robogym_ray.robots.ur.controller import MIN_DURATION
