@@ -29,6 +29,8 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from robogym_ray.storage import local_run, read_text
+
 TAGS = ("train/success_rate", "eval/success_rate")
 FIRST_EPISODE_TAG = "episode/return"  # written once per finished episode
 STATUS_COLOURS = {"success": "tab:green", "collision": "tab:red",
@@ -40,7 +42,8 @@ def read_scalars(run_dir: str | Path, tags: Sequence[str] = TAGS) -> dict[str, t
     """``{tag: (steps, values)}`` for the tags a TensorBoard run directory has."""
     from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
-    acc = EventAccumulator(str(run_dir), size_guidance={"scalars": 0})  # 0 = keep all
+    # 0 = keep all; an object store's run is downloaded first
+    acc = EventAccumulator(str(local_run(run_dir)), size_guidance={"scalars": 0})
     acc.Reload()
     have = set(acc.Tags().get("scalars", ()))
     out = {}
@@ -136,7 +139,7 @@ def plot_time_to_success(
     fig, ax = plt.subplots(figsize=(7, 4))
     reached: dict[str, float | None] = {}
     for label, path in summaries.items():
-        history = json.loads(Path(path).read_text())["eval_history"]
+        history = json.loads(read_text(path))["eval_history"]
         minutes = [e["wall_s"] / 60 for e in history]
         (line,) = ax.plot(minutes, [e["success_rate"] for e in history], label=label, lw=1.2)
         when = first_reach(history, rate)
@@ -183,7 +186,7 @@ def plot_curves(
     colours: dict[str, Any] = {}
     reached: dict[str, dict[str, float | None]] = {}
     for label, path in curves.items():
-        curve = json.loads(Path(path).read_text())
+        curve = json.loads(read_text(path))
         method, seeded = label.split(" seed")[0], " seed" in label
         kwargs = {"color": colours[method]} if method in colours else {}
         (line,) = ax.plot([saved_at(c) for c in curve], [c["success_rate"] for c in curve],
@@ -201,7 +204,7 @@ def plot_curves(
 def plot_targets(evaluation_json: str | Path, out: str | Path) -> Path:
     """UR targets of a final evaluation coloured by final status (3D and top view)."""
     plt = _pyplot()
-    data = json.loads(Path(evaluation_json).read_text())
+    data = json.loads(read_text(evaluation_json))
     episodes = [e for e in data["episodes"] if e.get("target") and len(e["target"]) >= 3]
     fig = plt.figure(figsize=(11, 4.8))
     ax3 = fig.add_subplot(1, 2, 1, projection="3d")
@@ -270,7 +273,7 @@ def plot_paths(
 ) -> Path:
     """MiR100 evaluation paths over the lab, coloured by status, and close-ups of failures."""
     plt = _pyplot()
-    data = json.loads(Path(evaluation_json).read_text())
+    data = json.loads(read_text(evaluation_json))
     episodes = [e for e in data["episodes"] if e.get("path")]
     if not episodes or len(episodes[0]["path"][0]) != 2:
         raise SystemExit(f"{evaluation_json}: no MiR100 paths; run evaluate with --paths")

@@ -136,7 +136,7 @@ class Run:
             "env_steps_per_s": round(counters["env_steps"] / wall_s, 1),
             "snapshots": list(self.saved), "load_average_after": list(os.getloadavg()),
         }  # fmt: skip
-        from robogym_ray.learner.checkpoint import write_bytes
+        from robogym_ray.storage import write_bytes
 
         # Replaced whole: a reader never sees half a record.
         data = json.dumps(record, indent=2).encode()
@@ -216,7 +216,7 @@ def _train_rllib(algo: str, problem: str, minutes: float, seed: int, out: Path,
         algo_obj.stop()
 
 
-def evaluate(run_dir: Path, episodes: int = 100, seed: int = 1000) -> list[dict[str, Any]]:
+def evaluate(run_dir: str | Path, episodes: int = 100, seed: int = 1000) -> list[dict[str, Any]]:
     """Score every snapshot of a run on the same greedy episodes; writes ``curve.json``.
 
     ``run_dir``: a peer's (it has ``run.json``) or a ``robogym-ray train`` run's (its timed
@@ -226,7 +226,9 @@ def evaluate(run_dir: Path, episodes: int = 100, seed: int = 1000) -> list[dict[
     import robogym_ray  # noqa: F401 - registers the ids
     from robogym_ray.envs import outcomes
     from robogym_ray.evaluation import run_episodes
+    from robogym_ray.storage import RunStorage, is_uri, local_run
 
+    location, run_dir = str(run_dir), local_run(run_dir)  # an object store's: downloaded
     env_id, snapshots = _snapshots(run_dir)
     env = gym.make(env_id)
     curve = []
@@ -238,6 +240,9 @@ def evaluate(run_dir: Path, episodes: int = 100, seed: int = 1000) -> list[dict[
     finally:
         env.close()
     (run_dir / "curve.json").write_text(json.dumps(curve, indent=2))
+    if is_uri(location):  # back beside the snapshots it scored
+        data = json.dumps(curve, indent=2).encode()
+        RunStorage(location).write_bytes("curve.json", data, "curve")
     return curve
 
 
@@ -378,7 +383,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     elif args.command == "exploration":
         exploration(Path(args.run_dir), args.episodes, args.seed)
     else:
-        evaluate(Path(args.run_dir), args.episodes, args.seed)
+        evaluate(args.run_dir, args.episodes, args.seed)
     return 0
 
 

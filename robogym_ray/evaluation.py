@@ -246,7 +246,9 @@ def evaluate(policy_path: str | Path, cfg: EvaluationConfig) -> EvaluationResult
 
     import robogym_ray.envs  # noqa: F401 - registers the ids
     from robogym_ray.export import load_policy, sidecar_path
+    from robogym_ray.storage import local_file
 
+    policy_path = local_file(policy_path, "policy")  # an object store's: downloaded once
     if cfg.isaac_lab:
         from robogym_ray.isaac_lab import IsaacLabPolicy
 

@@ -28,7 +28,8 @@ from torch import nn
 
 from robogym_ray.config import check_dir_path, check_fields, quote, read_json
 from robogym_ray.errors import ConfigError
-from robogym_ray.learner.checkpoint import policy_weights, read, staged_write, write_bytes
+from robogym_ray.learner.checkpoint import policy_weights, read
+from robogym_ray.storage import local_file, staged_write, write_bytes
 from robogym_ray.text import clip_text, first_sentence
 
 FORMAT = "robogym-ray-policy/torchscript-v1"
@@ -146,6 +147,7 @@ def export_policy(
     if Path(out).is_dir():  # checked before anything is loaded or written
         raise ConfigError(f"export OUT {out} is a directory; name the file to write")
     check_dir_path(Path(out).parent, "export OUT's directory")
+    checkpoint = local_file(checkpoint, "checkpoint")  # an object store's: downloaded once
     policy, info = load_checkpoint_policy(checkpoint, online)
     env_id = env_id or env_id_of_run(checkpoint)
     low, high = action_bounds(env_id) if env_id else (None, None)
@@ -232,7 +234,8 @@ class PolicyFunction:
 
 def load_policy(path: str | Path, online: bool = False) -> PolicyFunction:
     """An exported policy (it has a sidecar) or a learner checkpoint (see
-    :func:`load_checkpoint_policy` for ``online``)."""
+    :func:`load_checkpoint_policy` for ``online``); ``path`` may be an object store's URI."""
+    path = local_file(path, "policy")
     if sidecar_path(path).exists():
         if online:
             raise ConfigError(f"{path} is an exported policy; --online-weights needs a learner.pt")

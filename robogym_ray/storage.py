@@ -6,7 +6,7 @@ and its replay snapshot, the timed policy snapshots, ``policy-best.pt``) all go 
 
 * a **path** on a file system (the default, ``runs``; in a multi-node run a mount every node
   shares, e.g. NFS): written as before, to a temporary name beside the file and renamed
-  (``learner.checkpoint.write_bytes``), so nothing is ever half written;
+  (``write_bytes``), so nothing is ever half written;
 * or an **object store URI** (``s3://bucket/prefix``, ``gs://...``, anything ``pyarrow.fs``
   knows - the filesystem layer Ray Train's own storage uses): each file is one whole-object
   write, which the store makes visible only once complete. An S3-compatible server other than
@@ -22,8 +22,10 @@ own directory for a path, a local temporary directory for an object store, uploa
 from __future__ import annotations
 
 import os
-import socket
+import shutil
 import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager, suppress
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
 from typing import Any
@@ -35,6 +37,61 @@ RESULTS_ENV = "ROBOGYM_RAY_RESULTS"
 _RAY_WORKING_DIR = os.path.join("runtime_resources", "working_dir_files")
 
 
+# -- atomic files on a file system ----------------------------------------------------------
+def write_bytes(path: str | os.PathLike, data: bytes | memoryview, what: str) -> Path:
+    """``data`` to a temporary name beside ``path``, synced, then renamed into place.
+
+    On any failure the temporary file is removed and ``path`` is untouched; an OSError (a full
+    disk) becomes a ``DiskWriteError`` naming ``what`` and ``path``.
+    """
+    with staged_write(path, data, what):
+        pass
+    return Path(path)
+
+
+@contextmanager
+def staged_write(path: str | os.PathLike, data: bytes | memoryview, what: str) -> Iterator[None]:
+    """``write_bytes``, with the rename into place held until the block has run: a file that
+    must not appear without a companion (an exported policy and its sidecar) writes that
+    companion in the block; if the block fails, ``path`` is untouched."""
+    with replacing(Path(path), what) as tmp:
+        with open(tmp, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())  # a write error that shows only on flush: before the rename
+        yield
+
+
+def copy_file(source: str | os.PathLike, path: str | os.PathLike, what: str) -> Path:
+    """``source`` copied to ``path`` the way ``write_bytes`` writes (a temporary name beside
+    it, synced, renamed): a full disk leaves no partial ``path`` behind."""
+    path = Path(path)
+    with replacing(path, what) as tmp:
+        shutil.copyfile(source, tmp)
+        with open(tmp, "rb+") as f:
+            os.fsync(f.fileno())
+    return path
+
+
+@contextmanager
+def replacing(path: Path, what: str) -> Iterator[Path]:
+    """Yields a temporary name beside ``path`` to write; renames it to ``path`` after the block,
+    removes it when the block (or the rename) fails."""
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        yield tmp
+        os.replace(tmp, path)
+    except BaseException as exc:
+        with suppress(OSError):
+            tmp.unlink(missing_ok=True)
+        if isinstance(exc, OSError):
+            raise DiskWriteError.of(what, path, exc) from None
+        raise
+
+
+
+# -- a run's storage -------------------------------------------------------------------------
 def is_uri(location: str) -> bool:
     """Whether ``location`` names an object store (``scheme://...``), not a file-system path.
 
@@ -118,8 +175,6 @@ class RunStorage:
         """``data`` as ``rel``, atomically (a path: temporary name and rename; an object
         store: one whole-object write). A failure is a ``DiskWriteError`` naming ``what``."""
         if self.is_local:
-            from robogym_ray.learner.checkpoint import write_bytes
-
             return str(write_bytes(self.path / rel, data, what))
         fs, key = self._fs(rel)
         try:
@@ -134,8 +189,6 @@ class RunStorage:
         if self.is_local and (self.path / rel).resolve() == local.resolve():
             return str(local)
         if self.is_local:
-            from robogym_ray.learner.checkpoint import copy_file
-
             return str(copy_file(local, self.path / rel, what))
         fs, key = self._fs(rel)
         try:  # streamed: a replay snapshot can be gigabytes
@@ -168,8 +221,6 @@ class RunStorage:
         local.parent.mkdir(parents=True, exist_ok=True)
         if self.is_local:
             if (self.path / rel).resolve() != local.resolve():
-                from robogym_ray.learner.checkpoint import copy_file
-
                 copy_file(self.path / rel, local, "local copy")
             return True
         fs, key = self._fs(rel)
@@ -231,31 +282,62 @@ class RunStorage:
             self.delete(rel)
 
 
-def node_label() -> str:
-    """This machine as a user would find it in a cluster: host name and address."""
-    host = socket.gethostname()
-    try:
-        import ray
-
-        ip = ray.util.get_node_ip_address()
-    except Exception:  # noqa: BLE001 - no Ray here: the host name alone
-        return host
-    return f"{host} ({ip})"
-
-
-def local_file(location: str, what: str = "file") -> str:
-    """A local path to read ``location`` from: a path as it is, an object store's file
-    downloaded once into a temporary folder (with a replay snapshot beside a checkpoint, when
-    the store has one). A missing object is a ConfigError naming it."""
+def local_file(location: str | os.PathLike, what: str = "file") -> str:
+    """A local path to read ``location`` from: a path as it is; an object store's file
+    downloaded into a temporary folder, with what readers look for beside it: a checkpoint's
+    replay snapshot and an exported policy's sidecar, and for a file in a run's
+    ``checkpoints/``, the run's ``config.json`` (its env id) where ``export`` looks for it.
+    A missing object is a ConfigError naming it."""
+    location = str(location)
     if not is_uri(location):
         return location
     base, query = _split_query(location)
-    parent, _, name = base.rpartition("/")
-    store = RunStorage(f"{parent}?{query}" if query else parent)
-    local = Path(tempfile.mkdtemp(prefix="robogym-ray-fetch-")) / name
-    if not store.download(name, local):
+    parts = base.split("/")
+    keep = 2 if len(parts) > 4 and parts[-2] == "checkpoints" else 1  # RUN/checkpoints/FILE
+    top = "/".join(parts[: -keep - 1])
+    store = RunStorage(f"{top}?{query}" if query else top)
+    tail = "/".join(parts[-keep - 1 :])
+    local = Path(tempfile.mkdtemp(prefix="robogym-ray-fetch-")) / tail
+    if not store.download(tail, local):
         raise ConfigError(f"{what} {location}: no such object")
-    from robogym_ray.learner.checkpoint import REPLAY_SUFFIX
-
-    store.download(name + REPLAY_SUFFIX, Path(f"{local}{REPLAY_SUFFIX}"))
+    for companion in store.names(tail.rpartition("/")[0]):  # e.g. learner.pt.replay.npz
+        if companion.startswith(f"{local.name}.") and not companion.endswith(".tmp"):
+            store.download(f"{tail}{companion[len(local.name):]}", local.parent / companion)
+    sidecar = tail.rsplit(".", 1)[0] + ".json"
+    store.download(sidecar, local.parent / Path(sidecar).name)
+    if keep == 2:
+        run = tail.split("/")[0]
+        store.download(f"{run}/config.json", local.parent.parent / "config.json")
     return str(local)
+
+
+def local_run(location: str | os.PathLike) -> Path:
+    """A run folder to read: a path as it is; an object store's run (every file under it, its
+    replay snapshots left out) downloaded into a temporary folder."""
+    location = str(location)
+    if not is_uri(location):
+        return Path(location)
+    import pyarrow.fs as pafs
+
+    store = RunStorage(location)
+    fs, root = store._fs()
+    infos = fs.get_file_info(pafs.FileSelector(root, recursive=True, allow_not_found=True))
+    files = [i.path for i in infos if i.type == pafs.FileType.File]
+    if not files:
+        raise ConfigError(f"run {location}: no such run (no files under it)")
+    local = Path(tempfile.mkdtemp(prefix="robogym-ray-run-")) / PurePosixPath(root).name
+    for path in files:
+        rel = str(PurePosixPath(path).relative_to(root))
+        if not rel.endswith(".replay.npz"):
+            store.download(rel, local / rel)
+    return local
+
+
+def read_text(location: str | os.PathLike) -> str:
+    """A text file (a summary, a curve) at a path or an object store's URI."""
+    location = str(location)
+    if not is_uri(location):
+        return Path(location).read_text()
+    base, query = _split_query(location)
+    parent, _, name = base.rpartition("/")
+    return RunStorage(f"{parent}?{query}" if query else parent).read_bytes(name).decode()

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import logging
 import os
+import socket
 import time
 from typing import Any
 
@@ -262,6 +263,17 @@ class _Evaluator(Evaluator):
         return os.getpid()
 
 
+class _Learner(LearnerService):
+    def status(self) -> dict[str, Any]:
+        """``LearnerService.status`` and the node it runs on (it moves with a lost node)."""
+        return {**super().status(), "node": node_label()}
+
+
+def node_label() -> str:
+    """This process's machine as a user finds it in a cluster: host name and address."""
+    return f"{socket.gethostname()} ({ray.util.get_node_ip_address()})"
+
+
 RolloutActor = ray.remote(_Rollout)
-LearnerActor = ray.remote(LearnerService)
+LearnerActor = ray.remote(_Learner)
 EvaluatorActor = ray.remote(_Evaluator)

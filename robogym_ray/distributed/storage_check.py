@@ -26,15 +26,22 @@ def _probe(storage: RunStorage, marker: str, token: str, node_id: str) -> str:
     try:
         seen = storage.read_bytes(marker).decode(errors="replace")
     except (OSError, ConfigError) as exc:
-        return f"cannot read it ({type(exc).__name__}: {str(exc).splitlines()[0][:120]})"
+        return f"cannot read it ({_reason(exc)})"
     if seen != token:
         return "sees another file there (a folder of its own, not the driver's)"
     try:
         storage.write_bytes(f"{marker}.{node_id}", token.encode(), "storage check")
         storage.delete(f"{marker}.{node_id}")
     except Exception as exc:  # noqa: BLE001 - any failure to write is the answer
-        return f"cannot write there ({str(exc).splitlines()[0][:120]})"
+        return f"cannot write there ({_reason(exc)})"
     return ""
+
+
+def _reason(exc: BaseException) -> str:
+    """Why, in a few words: an OSError's strerror ("No such file or directory") or the start of
+    the message."""
+    strerror = getattr(exc, "strerror", None)
+    return str(strerror) if strerror else (str(exc).splitlines() or [type(exc).__name__])[0][:120]
 
 
 _probe_task = ray.remote(num_cpus=0, max_retries=0)(_probe)

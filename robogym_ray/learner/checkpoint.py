@@ -21,18 +21,17 @@ import io
 import json
 import os
 import pickle
-import shutil
 import warnings
 import zipfile
-from collections.abc import Iterator, Mapping
-from contextlib import contextmanager, suppress
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import torch
 
-from robogym_ray.errors import ConfigError, DiskWriteError
+from robogym_ray.errors import ConfigError
+from robogym_ray.storage import replacing, write_bytes
 from robogym_ray.text import first_sentence
 
 CHECKPOINT_NAME = "learner.pt"
@@ -59,58 +58,6 @@ def write_atomic(
     # ("unexpected pos", "basic_ios::clear: iostream error") that has lost the errno.
     torch.save(dict(state), buffer)
     return write_bytes(path, buffer.getbuffer(), what)
-
-
-def write_bytes(path: str | os.PathLike, data: bytes | memoryview, what: str) -> Path:
-    """``data`` to a temporary name beside ``path``, synced, then renamed into place.
-
-    On any failure the temporary file is removed and ``path`` is untouched; an OSError (a full
-    disk) becomes a ``DiskWriteError`` naming ``what`` and ``path``.
-    """
-    with staged_write(path, data, what):
-        pass
-    return Path(path)
-
-
-@contextmanager
-def staged_write(path: str | os.PathLike, data: bytes | memoryview, what: str) -> Iterator[None]:
-    """``write_bytes``, with the rename into place held until the block has run: a file that
-    must not appear without a companion (an exported policy and its sidecar) writes that
-    companion in the block; if the block fails, ``path`` is untouched."""
-    with _replacing(Path(path), what) as tmp:
-        with open(tmp, "wb") as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())  # a write error that shows only on flush: before the rename
-        yield
-
-
-def copy_file(source: str | os.PathLike, path: str | os.PathLike, what: str) -> Path:
-    """``source`` copied to ``path`` the way ``write_bytes`` writes (a temporary name beside
-    it, synced, renamed): a full disk leaves no partial ``path`` behind."""
-    path = Path(path)
-    with _replacing(path, what) as tmp:
-        shutil.copyfile(source, tmp)
-        with open(tmp, "rb+") as f:
-            os.fsync(f.fileno())
-    return path
-
-
-@contextmanager
-def _replacing(path: Path, what: str) -> Iterator[Path]:
-    """Yields a temporary name beside ``path`` to write; renames it to ``path`` after the block,
-    removes it when the block (or the rename) fails."""
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        yield tmp
-        os.replace(tmp, path)
-    except BaseException as exc:
-        with suppress(OSError):
-            tmp.unlink(missing_ok=True)
-        if isinstance(exc, OSError):
-            raise DiskWriteError.of(what, path, exc) from None
-        raise
 
 
 def read(path: str | os.PathLike, device: str | torch.device = "cpu") -> dict[str, Any]:
@@ -217,7 +164,7 @@ def write_replay(path: str | os.PathLike, replay_state: Mapping[str, Any]) -> No
     arrays = dict(replay_state)
     arrays[_RNG_KEY] = np.array(json.dumps(arrays[_RNG_KEY]))
     # Streamed to the file, not through memory: a replay can be gigabytes.
-    with _replacing(Path(path), "replay") as tmp, open(tmp, "wb") as f:
+    with replacing(Path(path), "replay") as tmp, open(tmp, "wb") as f:
         np.savez(f, **arrays)  # to an open file: np.savez would append .npz to a bare name
         f.flush()
         os.fsync(f.fileno())

@@ -21,7 +21,7 @@ from robogym_ray.learner.checkpoint import CHECKPOINT_NAME, replay_path
 from robogym_ray.learner.config import D4PGConfig
 from robogym_ray.learner.learner import D4PGLearner
 from robogym_ray.learner.rate_limiter import SamplesPerInsert
-from robogym_ray.storage import RunStorage, node_label
+from robogym_ray.storage import RunStorage
 
 log = logging.getLogger(__name__)
 
@@ -169,7 +169,6 @@ class LearnerService:
             "restored_from_step": self.restored_from_step,
             "total_added": int(self.learner.replay.total_added),
             "restored_replay": self.restored_replay,
-            "node": node_label(),
         }
 
 

@@ -15,9 +15,9 @@ from typing import Any
 import ray
 from ray.exceptions import RayTaskError
 
+from robogym_ray.distributed.remote import node_label
 from robogym_ray.errors import DiskWriteError, RunStoppedError
 from robogym_ray.learner.checkpoint import CHECKPOINT_NAME
-from robogym_ray.storage import node_label
 from robogym_ray.training import stats
 from robogym_ray.training.program import Program
 from robogym_ray.training.stats import RunStats

@@ -43,3 +43,12 @@ def free_port() -> int:
     with socket.socket() as sock:
         sock.bind(("127.0.0.1", 0))
         return int(sock.getsockname()[1])
+
+
+@pytest.fixture
+def temp_dir() -> Iterator[str]:
+    """A short folder under /tmp for a `ray start` cluster's files (Unix socket paths are
+    limited to ~100 bytes)."""
+    path = tempfile.mkdtemp(prefix="rgc", dir="/tmp")  # short: Unix socket paths are limited
+    yield path
+    shutil.rmtree(path, ignore_errors=True)

@@ -58,11 +58,13 @@ def probe(disk: str) -> None:
 
     # --init-from copied into a new run's directory on a full disk: no partial learner.pt,
     # which a re-run would take for the run's own checkpoint.
+    from robogym_ray.storage import RunStorage
     from robogym_ray.training.setup import seed_checkpoint
 
     fill(disk_dir)
-    seeded = disk_dir / "seeded"
-    out["seed"] = _error(lambda: seed_checkpoint(str(good), seeded, SMALL, OBS, ACT))
+    seeded = disk_dir / "run" / "checkpoints"
+    storage = RunStorage(str(disk_dir / "run"))
+    out["seed"] = _error(lambda: seed_checkpoint(str(good), storage, SMALL, OBS, ACT))
     out["seeded_files"] = sorted(p.name for p in seeded.iterdir()) if seeded.exists() else []
 
     out["tmp"] = tmp_files(disk_dir)
@@ -95,7 +97,7 @@ def test_saving_on_a_full_disk_raises_the_typed_error_and_leaves_the_last_checkp
     assert out["with_replay"]["path"] == f"{good}.replay.npz"
 
     assert out["seed"]["type"] == "DiskFullError"
-    assert out["seed"]["path"] == str(disk / "seeded" / "learner.pt")
+    assert out["seed"]["path"] == str(disk / "run" / "checkpoints" / "learner.pt")
     assert out["seed"]["what"] == "learner checkpoint"
     assert out["seeded_files"] == []
 

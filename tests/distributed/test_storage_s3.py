@@ -1,0 +1,95 @@
+"""A run whose storage is an object store: an S3-compatible server started on 127.0.0.1 (moto's
+standalone server mode, which pyarrow's and fsspec's own tests use), the real CLI with its own
+embedded Ray. Every file of the run lands in the bucket; ``evaluate``, ``export`` and
+``--init-from`` read it from there."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+pytestmark = [pytest.mark.slow]
+
+BUCKET = "robogym"
+
+
+@pytest.fixture
+def s3(monkeypatch: pytest.MonkeyPatch) -> Iterator[Any]:
+    """A bucket on a local S3 server; the AWS_* variables that reach it, set for this test."""
+    boto3 = pytest.importorskip("boto3")
+    moto_server = pytest.importorskip("moto.server")
+    server = moto_server.ThreadedMotoServer(ip_address="127.0.0.1", port=0, verbose=False)
+    server.start()
+    host, port = server.get_host_and_port()
+    for key, value in {
+        "AWS_ACCESS_KEY_ID": "testing",
+        "AWS_SECRET_ACCESS_KEY": "testing",
+        "AWS_DEFAULT_REGION": "us-east-1",
+        "AWS_ENDPOINT_URL": f"http://{host}:{port}",
+    }.items():
+        monkeypatch.setenv(key, value)
+    client = boto3.client("s3", endpoint_url=f"http://{host}:{port}")
+    client.create_bucket(Bucket=BUCKET)
+    try:
+        yield client
+    finally:
+        server.stop()
+
+
+def cli(*args: str, timeout: float = 400) -> subprocess.CompletedProcess:
+    env = {**os.environ, "RAY_AUTH_MODE": "disabled"}
+    return subprocess.run(
+        [sys.executable, "-m", "robogym_ray.cli", *args],
+        env=env, capture_output=True, text=True, timeout=timeout,
+    )  # fmt: skip
+
+
+def keys(client: Any, prefix: str) -> list[str]:
+    listing = client.list_objects_v2(Bucket=BUCKET, Prefix=prefix)
+    return sorted(o["Key"][len(prefix) :] for o in listing.get("Contents", []))
+
+
+def test_a_run_on_s3_storage_and_reading_it_back(s3: Any, tmp_path: Path) -> None:
+    storage = f"s3://{BUCKET}/runs"
+    common = ["--task", "navigation", "--workers", "1", "--envs-per-worker", "2",
+              "--storage", storage, "--no-progress", "--num-cpus", "2"]  # fmt: skip
+    out = cli("train", *common, "--run-name", "first", "--total-steps", "1500", "--save-replay",
+              "--policy-snapshot-every-s", "1", "--select-episodes", "2")  # fmt: skip
+    assert out.returncode == 0, out.stdout[-2000:] + out.stderr[-3000:]
+    files = keys(s3, "runs/first/")
+    expected = {"config.json", "summary.json", "checkpoints/learner.pt",
+                "checkpoints/learner.pt.replay.npz", "checkpoints/policy-best.pt"}  # fmt: skip
+    assert expected <= set(files), files
+    assert any(f.startswith("events.out.tfevents.") for f in files), files
+    assert any(f.startswith("checkpoints/policy-") and f.endswith("min.pt") for f in files)
+    assert not (Path.cwd() / "runs" / "first").exists()  # nothing written beside the driver
+    body = s3.get_object(Bucket=BUCKET, Key="runs/first/summary.json")["Body"].read()
+    summary = json.loads(body)
+    learner_pt = f"{storage}/first/checkpoints/learner.pt"
+    assert summary["checkpoint"] == learner_pt
+    assert summary["storage"] == {"root": f"{storage}/first", "node": "(object store)"}
+    assert f"files:       {storage}/first/" in out.stdout
+
+    # The run's files are read from the bucket: evaluate, export, --init-from.
+    out = cli("evaluate", learner_pt, "--episodes", "2", "--max-steps", "30",
+              "--out", str(tmp_path / "eval"))  # fmt: skip
+    assert out.returncode == 0, out.stderr[-3000:]
+    result = json.loads((tmp_path / "eval" / "evaluation.json").read_text())
+    assert result["env_id"] == "RoboGymRay/ObstacleAvoidanceMir100Sim-v0"  # from config.json
+    assert len(result["episodes"]) == 2
+    out = cli("export", learner_pt, str(tmp_path / "nav.pt"))
+    assert out.returncode == 0 and (tmp_path / "nav.pt").stat().st_size > 0, out.stderr[-3000:]
+    out = cli("train", *common, "--run-name", "second", "--total-steps", "300",
+              "--init-from", learner_pt, "--no-evaluator", "--json")  # fmt: skip
+    assert out.returncode == 0, out.stderr[-3000:]
+    second = json.loads(out.stdout.strip().splitlines()[-1])
+    assert second["learner_restored_from_step"] == summary["learner_steps"]
+    assert second["learner_restored_replay"] > 0
+    assert "checkpoints/learner.pt" in keys(s3, "runs/second/")
