@@ -90,7 +90,6 @@ def replacing(path: Path, what: str) -> Iterator[Path]:
         raise
 
 
-
 # -- a run's storage -------------------------------------------------------------------------
 def is_uri(location: str) -> bool:
     """Whether ``location`` names an object store (``scheme://...``), not a file-system path.
@@ -302,7 +301,7 @@ def local_file(location: str | os.PathLike, what: str = "file") -> str:
         raise ConfigError(f"{what} {location}: no such object")
     for companion in store.names(tail.rpartition("/")[0]):  # e.g. learner.pt.replay.npz
         if companion.startswith(f"{local.name}.") and not companion.endswith(".tmp"):
-            store.download(f"{tail}{companion[len(local.name):]}", local.parent / companion)
+            store.download(f"{tail}{companion[len(local.name) :]}", local.parent / companion)
     sidecar = tail.rsplit(".", 1)[0] + ".json"
     store.download(sidecar, local.parent / Path(sidecar).name)
     if keep == 2:

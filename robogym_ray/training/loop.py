@@ -83,8 +83,8 @@ class LearnerDeaths:
         return True
 
     def answered(self, pid: int) -> bool:
-        """A call returned from ``pid``: a new pid is a death whose calls never failed here
-        (True when it is one not counted yet)."""
+        """A call returned from ``pid``: a new pid is a death whose calls never failed here.
+        True when ``pid`` is a process not seen before (a restarted learner to look at)."""
         return self._new_pid(pid)
 
     def _new_pid(self, pid: int) -> bool:
@@ -92,10 +92,10 @@ class LearnerDeaths:
             return False
         self._seen.add(pid)
         self.pid = pid
-        if self._unanswered:
+        if self._unanswered:  # its death was counted when the old process stopped answering
             self._unanswered = False
-            return False
-        self.count += 1
+        else:
+            self.count += 1
         return True
 
 
@@ -261,10 +261,11 @@ class TrainingLoop:
             except (RayActorError, OwnerDiedError):  # learner died, or the worker that sent it
                 # This batch is lost (lost_transitions counts it); the next ones go to the
                 # learner Ray restarted from its checkpoint. One death, one failure.
+                failed_at = self._wall()
                 if self.learner_deaths.call_failed():
                     self.stats.learner_failures = self.learner_deaths.count
                     log.warning("learner actor failed; Ray restarts it from its last checkpoint")
-                    self._learner_restarted()
+                    self._learner_restarted(failed_at)
                 continue
             except RayTaskError as exc:
                 # A checkpoint the learner could not write (a full disk): the next would fail
@@ -285,10 +286,11 @@ class TrainingLoop:
             if not all_:
                 block = False
 
-    def _learner_restarted(self) -> None:
-        """After a learner death: the new process's weights from now on, and what it restored.
-        One that restored no checkpoint although the old one had trained ends the run
-        (``LearnerLostError``): training on from scratch would pass for the same run."""
+    def _learner_restarted(self, failed_at: float | None = None) -> None:
+        """After a learner death: the new process's weights from now on, and what it restored
+        (``stats.learner_restarts``: when a call first failed, when the new one answered, where
+        and from what). One that restored no checkpoint although the old one had trained ends
+        the run (``LearnerLostError``): training on from scratch would pass for the same run."""
         self._replies.append(self.weights_ref)  # the dead process's, maybe never produced
         self.weights_stale = True
         if self.failure is not None:
@@ -298,6 +300,12 @@ class TrainingLoop:
         except (RayActorError, GetTimeoutError):  # dead for good: its calls keep failing
             return
         trained = max(int(self.stats.learner.get("learner_steps", 0)), self.p.first_learner_step)
+        self.stats.learner_restarts.append({
+            "failed_at_wall_s": None if failed_at is None else round(failed_at, 2),
+            "answered_at_wall_s": round(self._wall(), 2), "node": status["node"],
+            "restored_from_step": status["restored_from_step"],
+            "restored_replay": status["restored_replay"], "steps_before": trained,
+        })  # fmt: skip
         if status["restored_from_step"] >= 0:
             log.warning(
                 "learner restarted on %s from its checkpoint at step %d (%d transitions)",

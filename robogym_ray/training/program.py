@@ -21,23 +21,33 @@ all nodes reach: the learner writes its checkpoints there itself, the driver the
 from __future__ import annotations
 
 import logging
+import os
+from dataclasses import asdict
+from pathlib import Path
 from typing import Any
 
+import numpy as np
 import ray
 
 from robogym_ray.distributed import remote
+from robogym_ray.distributed.real_client import RealRobotClientFactory
 from robogym_ray.distributed.storage_check import check_reachable
 from robogym_ray.envs.inprocess import InProcessServerProvider
+from robogym_ray.envs.registration import variant_id
 from robogym_ray.errors import DiskWriteError
+from robogym_ray.experience.revisits import FailedStartRevisits
 from robogym_ray.experience.rollout import box_dims, make_gym_env
+from robogym_ray.learner.checkpoint import CHECKPOINT_NAME, replay_path
 from robogym_ray.learner.config import D4PGConfig
+from robogym_ray.realrobot.safety import safety_for
 from robogym_ray.robots.emulation import EmulationConfig
-from robogym_ray.storage import RunStorage
+from robogym_ray.storage import RunStorage, local_file
 from robogym_ray.training import setup
 from robogym_ray.training.config import TrainConfig
 from robogym_ray.training.presets import TaskPreset
 from robogym_ray.training.selection import PolicySnapshots, SnapshotSelector
 from robogym_ray.training.stats import WorkerSlot
+from robogym_ray.training.supervision import start_supervision
 
 log = logging.getLogger(__name__)
 
@@ -69,7 +79,7 @@ class Program:
             self.run_dir = self.storage.staging("")
         except OSError as exc:  # a full disk: one line, not a traceback
             raise DiskWriteError.of("run directory", self.storage.location(), exc) from None
-        self.supervision = setup.start_supervision(cfg, preset.env_id, self.name)
+        self.supervision = start_supervision(cfg, preset.env_id, self.name)
         self.learner: Any = None
         self.evaluator: Any = None
         self.workers: list[WorkerSlot] = []
@@ -88,10 +98,10 @@ class Program:
         self.obs_dim, self.act_dim = box_dims(probe)
         probe.close()
         if cfg.init_from:
-            setup.seed_checkpoint(cfg.init_from, self.storage, d4pg, self.obs_dim, self.act_dim)
+            seed_checkpoint(cfg.init_from, self.storage, d4pg, self.obs_dim, self.act_dim)
         self.learner = remote.LearnerActor.options(
             num_cpus=cfg.learner_cpus,
-            num_gpus=setup.learner_gpus(cfg),
+            num_gpus=learner_gpus(cfg),
             **requires(cfg.learner_resource),
             max_restarts=3,
             max_task_retries=0,
@@ -108,7 +118,7 @@ class Program:
         log.info("learner on %s", status["node"])
         self.workers = self._start_workers()
         if cfg.evaluator:
-            kwargs = self._env_kwargs(None) | setup.evaluator_env_kwargs(cfg, env_id)
+            kwargs = self._env_kwargs(None) | evaluator_env_kwargs(cfg, env_id)
             self.evaluator = remote.EvaluatorActor.options(
                 num_cpus=cfg.evaluator_cpus,
                 **requires(cfg.evaluator_resource, *self._sim_resources()),
@@ -145,7 +155,7 @@ class Program:
     def _start_workers(self) -> list[WorkerSlot]:
         cfg = self.cfg
         n = cfg.workers + len(cfg.real_robot)
-        self._sigmas = setup.worker_sigmas(self.d4pg, cfg, n)
+        self._sigmas = worker_sigmas(self.d4pg, cfg, n)
         slots = []
         for i in range(n):
             if i < cfg.workers:
@@ -170,7 +180,7 @@ class Program:
         ).remote(
             factory, self.d4pg, index=i, sigma=self._sigmas[i], seed=cfg.seed + i,
             random_steps=cfg.random_steps,
-            revisits=setup.revisits_for(cfg, i) if real_env is None else None,
+            revisits=revisits_for(cfg, i) if real_env is None else None,
             num_envs=1 if real_env else cfg.envs_per_worker, learner=self.learner,
         )  # fmt: skip
 
@@ -188,12 +198,12 @@ class Program:
         return True
 
     def _real_env(self, k: int) -> Any:
-        actor, factory = setup.real_robot(self.cfg, self.preset.env_id, self.name, k)
+        actor, factory = real_robot(self.cfg, self.preset.env_id, self.name, k)
         self.real_robots.append(actor)
         return factory
 
     def config_record(self) -> dict[str, Any]:
-        return setup.config_record(self.cfg, self.d4pg, self.emulation)
+        return config_record(self.cfg, self.d4pg, self.emulation)
 
     def restart_counts(self) -> dict[str, int]:
         return {} if self.supervision is None else self.supervision.restart_counts()
@@ -212,3 +222,80 @@ class Program:
                 ray.kill(actor)
         if self.supervision is not None:
             self.supervision.stop()
+
+
+# -- what the builder computes for each actor ----------------------------------------------
+def worker_sigmas(d4pg: D4PGConfig, cfg: TrainConfig, n: int) -> list[float]:
+    """Ape-X style: a spread of exploration noises from d4pg.sigma down to sigma_min."""
+    if n <= 1:
+        return [d4pg.sigma] * n
+    return list(np.linspace(d4pg.sigma, min(cfg.sigma_min, d4pg.sigma), n))
+
+
+def revisits_for(cfg: TrainConfig, index: int) -> FailedStartRevisits | None:
+    """Worker ``index``'s failed-start revisits (None when cfg.revisit_failed is 0)."""
+    if cfg.revisit_failed <= 0:
+        return None
+    return FailedStartRevisits(
+        cfg.revisit_failed, cfg.revisit_pool, cfg.revisit_max, seed=cfg.seed + index
+    )
+
+
+def learner_gpus(cfg: TrainConfig) -> float:
+    if cfg.learner_gpus >= 0:
+        return cfg.learner_gpus
+    return 1.0 if ray.cluster_resources().get("GPU", 0) >= 1 else 0.0
+
+
+def seed_checkpoint(
+    init_from: str, storage: RunStorage, d4pg: D4PGConfig, obs_dim: int, act_dim: int
+) -> bool:
+    """Copy ``init_from`` (and its replay; a path or an object store's URI) into the run's
+    ``checkpoints/`` in ``storage``, for the learner to restore.
+
+    Checked (``check_init_from``) before anything is copied. Returns False (and copies nothing)
+    when the run already has its own checkpoint (a ``--resume``d run: it is newer).
+    """
+    target = f"checkpoints/{CHECKPOINT_NAME}"
+    if storage.exists(target):
+        log.warning("%s exists; --init-from %s is not used", storage.location(target), init_from)
+        return False
+    source = Path(local_file(init_from, "--init-from"))
+    state = setup.check_init_from(str(source), d4pg, obs_dim, act_dim)
+    # The replay first: learner.pt marks the run's own checkpoint, so a copy cut off by a full
+    # disk leaves none, and the re-run copies again (copy_file leaves no partial file).
+    if replay_path(source).is_file():
+        storage.upload(replay_path(source), replay_path(target).as_posix(), "learner replay")
+    storage.upload(source, target, "learner checkpoint")
+    log.info("continuing from %s (step %d)", init_from, int(state["num_steps"]))
+    return True
+
+
+def evaluator_env_kwargs(cfg: TrainConfig, env_id: str) -> dict[str, Any]:
+    """What the evaluator's env needs beyond a worker's: frames for eval/video (our envs only)."""
+    if cfg.video_interval_s <= 0 or not env_id.startswith("RoboGymRay/"):
+        return {}
+    from robogym_ray.envs.render import RenderConfig
+
+    return {"render_mode": "rgb_array", "render_config": RenderConfig(width=320, height=240)}
+
+
+def real_robot(cfg: TrainConfig, env_id: str, run_name: str, k: int) -> tuple[Any, Any]:
+    """The real-robot actor for ``cfg.real_robot[k]`` and an env factory for the task's Rob
+    variant that reaches the robot only through it (safety filter, pause on errors)."""
+    address = cfg.real_robot[k]
+    name = f"real-{run_name}-{k}"
+    rob_id = variant_id(env_id, "rob")
+    token = cfg.token or os.environ.get("ROBOGYM_RAY_TOKEN") or None
+    actor = remote.start_real_robot(name, address, safety_for(rob_id), token=token)
+    kwargs = {"rs_address": address, "client_factory": RealRobotClientFactory(name)}
+    return actor, make_gym_env(rob_id, kwargs)
+
+
+def config_record(cfg: TrainConfig, d4pg: D4PGConfig, emulation: EmulationConfig) -> dict:
+    """What ``config.json`` holds: a config file ``--config`` reads back (never the token)."""
+    train = asdict(cfg) | ({"token": None} if cfg.token else {})
+    record = {"train": train, "d4pg": asdict(d4pg)}
+    if cfg.emulated_workers:
+        record["emulation"] = asdict(emulation)
+    return record

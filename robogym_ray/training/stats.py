@@ -66,6 +66,8 @@ class RunStats:
     learner: dict[str, float] = field(default_factory=dict)
     eval: dict[str, float] = field(default_factory=dict)
     eval_history: list[dict[str, float]] = field(default_factory=list)
+    learner_restarts: list[dict[str, Any]] = field(default_factory=list)
+    """Each learner process Ray restarted: when, where, and what it restored (the loop's)."""
 
 
 def record(stats: RunStats, result: RolloutResult, supervised: bool = False) -> list[Episode]:
@@ -176,6 +178,7 @@ def summary(stats: RunStats, final: Mapping[str, float], **facts: Any) -> dict[s
         "robot_errors": stats.robot_errors,
         "abandoned_real_calls": stats.abandoned_real_calls,
         "eval_history": stats.eval_history,
+        "learner_restarts": stats.learner_restarts,
         "final_status_counts": dict(Counter(stats.statuses)),
         "revisited_episodes": stats.revisits,
         **{k: round(v, 4) for k, v in final.items()},

@@ -30,34 +30,20 @@ pytestmark = [pytest.mark.slow]
 
 
 def test_ray_job_submit_runs_a_short_training(temp_dir: str, tmp_path: Path) -> None:
+    """Submitted the README's way, with a relative --logdir: the run's files land together in a
+    stable place on the head (here ROBOGYM_RAY_RESULTS; by default ~/robogym_ray_results), not
+    in Ray's temporary copy of the working dir, and the summary says where."""
     port, dash = free_port(), free_port()
-    with ray_node(head_args(port, temp_dir, 2, dash), temp_dir):
-        env = cluster_env()
+    env = {**cluster_env(), "ROBOGYM_RAY_RESULTS": str(tmp_path / "results")}
+    with ray_node(head_args(port, temp_dir, 2, dash), temp_dir, env=env):
         wait_for(lambda: cluster_cpus(f"127.0.0.1:{port}", env) >= 2, 90, "the head node")
         cmd = [
-            *RAY,
-            "job",
-            "submit",
-            f"--address=http://127.0.0.1:{dash}",
-            f"--working-dir={REPO}",
-            "--",
-            "robogym-ray",
-            "train",
-            "--task",
-            "RoboGymRay/ObstacleAvoidanceMir100Sim-v0",
-            "--workers",
-            "1",
-            "--total-steps",
-            "600",
-            "--logdir",
-            str(tmp_path),
-            "--run-name",
-            "job",
-            "--address",
-            "auto",
-            "--no-progress",
-            "--no-evaluator",
-        ]
+            *RAY, "job", "submit", f"--address=http://127.0.0.1:{dash}",
+            f"--working-dir={REPO}", "--",
+            "robogym-ray", "train", "--task", "RoboGymRay/ObstacleAvoidanceMir100Sim-v0",
+            "--workers", "1", "--total-steps", "600", "--logdir", "runs", "--run-name", "job",
+            "--address", "auto", "--no-progress", "--no-evaluator",
+        ]  # fmt: skip
         deadline = time.monotonic() + 90
         while True:  # the head's job agent starts after its CPUs show: Ray says "try again later"
             out = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=400)
@@ -66,8 +52,13 @@ def test_ray_job_submit_runs_a_short_training(temp_dir: str, tmp_path: Path) -> 
             time.sleep(3)
         assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-3000:]
         assert "succeeded" in out.stdout + out.stderr
-    summary = json.loads((tmp_path / "job" / "summary.json").read_text())
+    run = tmp_path / "results" / "runs" / "job"
+    summary = json.loads((run / "summary.json").read_text())
     assert summary["env_steps"] >= 600
+    assert summary["checkpoint"] == str(run / "checkpoints" / "learner.pt")
+    assert {p.name for p in run.iterdir()} >= {"config.json", "summary.json", "checkpoints"}
+    assert f"files:       {run}/" in out.stdout + out.stderr
+    assert not list(Path(temp_dir).rglob("runs/job"))  # nothing in Ray's temporary dirs
 
 
 def test_two_nodes_robot_servers_on_the_second(temp_dir: str, tmp_path: Path) -> None:

@@ -20,6 +20,7 @@ import os
 import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -182,8 +183,10 @@ def test_node_losses_on_a_cluster_of_separate_disks(temp_dir: str, tmp_path: Pat
                 moved_workers = [n for n in on_node(pids, a) if n.startswith("rollout-")]
                 step, transitions = snapshot_state(checkpoints)
                 os.killpg(a.pid, signal.SIGKILL)
+                killed = time.monotonic()
                 a.wait(timeout=30)
                 stdout, _ = driver.communicate(timeout=400)
+                ended = time.monotonic()
     log.close()
     err = (tmp_path / "driver.err").read_text()
     assert driver.returncode == 0, stdout[-2000:] + err[-4000:]
@@ -196,3 +199,10 @@ def test_node_losses_on_a_cluster_of_separate_disks(temp_dir: str, tmp_path: Pat
     assert summary["faults/worker_replacements"] >= len(lost_workers) + len(moved_workers)
     assert "Unhandled error" not in err and "Traceback" not in err, err[-4000:]
     assert f"files:       {shared / RUN}/" in stdout
+    # What the loss cost (docs/architecture.md "Clusters"; run with -s to see it): the kill's
+    # time on the run's clock is estimated from the end (the summary's wall_s, ~1 s late).
+    (restart,) = summary["learner_restarts"]
+    cost = {"killed_at_wall_s": round(summary["wall_s"] - (ended - killed), 1), **restart,
+            "step_at_kill": step, "snapshot_transitions": transitions,
+            "lost_transitions": summary["lost_transitions"]}  # fmt: skip
+    print("NODE-LOSS " + json.dumps(cost))

@@ -13,7 +13,7 @@ from robogym_ray.experience.revisits import FIRST_SEED, FailedStartRevisits
 from robogym_ray.experience.rollout import RolloutWorker
 from robogym_ray.learner.config import D4PGConfig
 from robogym_ray.training.config import TrainConfig
-from robogym_ray.training.setup import revisits_for
+from robogym_ray.training.program import revisits_for
 
 SMALL = D4PGConfig(policy_hidden=(16, 16), critic_hidden=(16, 16), batch_size=8)
 

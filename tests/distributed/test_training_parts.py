@@ -21,7 +21,8 @@ from robogym_ray.learner.service import LearnerService
 from robogym_ray.protocol.client import Deadlines
 from robogym_ray.storage import RunStorage
 from robogym_ray.training.config import TrainConfig
-from robogym_ray.training.setup import noise_scale, seed_checkpoint
+from robogym_ray.training.program import seed_checkpoint
+from robogym_ray.training.setup import noise_scale
 
 SMALL = D4PGConfig(
     policy_hidden=(32, 32),

@@ -59,7 +59,7 @@ def probe(disk: str) -> None:
     # --init-from copied into a new run's directory on a full disk: no partial learner.pt,
     # which a re-run would take for the run's own checkpoint.
     from robogym_ray.storage import RunStorage
-    from robogym_ray.training.setup import seed_checkpoint
+    from robogym_ray.training.program import seed_checkpoint
 
     fill(disk_dir)
     seeded = disk_dir / "run" / "checkpoints"
