@@ -12,6 +12,10 @@ median and 90th percentile over all windows of N episodes (episode i resets with
         --io-descriptors IO_descriptors.yaml
 
 Writes OUT/errors.json (the summary and every window's errors) and prints the summary as JSON.
+
+    # the figure: cumulative distributions of the window-end errors, policies side by side
+    python experiments/deploy_reach_errors.py plot docs/img/deploy_reach_errors.png \
+        D4PG=results/deploy-reach-d4pg/errors.json random=results/deploy-reach-random/errors.json
 """
 
 from __future__ import annotations
@@ -76,11 +80,46 @@ def load(args: argparse.Namespace, env: Any) -> tuple[Callable[[np.ndarray], np.
     return load_policy(args.policy), args.policy
 
 
+def plot(errors: dict[str, str], out: str | Path) -> Path:
+    """Cumulative distributions of the window-end errors of each ``LABEL=errors.json``: the
+    share of command windows that ended within x metres (left) and x radians (right)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(10, 3.8))
+    for label, path in errors.items():
+        record = json.loads(Path(path).read_text())
+        arr = np.asarray([w for ep in record["per_episode"] for w in ep]).reshape(-1, 2)
+        share = np.arange(1, len(arr) + 1) / len(arr)
+        for ax, col in zip(axes, arr.T, strict=True):
+            ax.plot(np.sort(col), share, label=f"{label} ({len(arr)} windows)")
+    units = ("position error at the window's end (m)", "rotation error at the window's end (rad)")
+    for ax, unit in zip(axes, units, strict=True):
+        ax.set_xlabel(unit)
+        ax.set_ylabel("share of command windows")
+        ax.grid(alpha=0.3)
+    axes[0].legend(loc="lower right")
+    fig.suptitle("IsaacDeployReachUR10e: wrist_3_link against each 4-s pose command")
+    fig.tight_layout()
+    out = Path(out)
+    fig.savefig(out, dpi=120)
+    plt.close(fig)
+    return out
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     import gymnasium as gym
 
     import robogym_ray  # noqa: F401 - registers the ids
 
+    if argv is None:
+        argv = sys.argv[1:]
+    if argv and argv[0] == "plot":  # plot OUT.png LABEL=errors.json ...
+        pairs = dict(item.split("=", 1) for item in argv[2:])
+        print(plot(pairs, argv[1]))
+        return 0
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("policy", nargs="?", help="learner.pt, exported policy, or Isaac Lab's.")
     parser.add_argument("--random", action="store_true", help="Uniformly random actions.")

@@ -29,6 +29,9 @@ def test_a_worker_past_its_deadline_is_killed_and_counted_hung() -> None:
     loop = TrainingLoop.__new__(TrainingLoop)  # only the waiting part: no program needed
     loop.cfg, loop.stats = TrainConfig(worker_deadline_s=2.0), RunStats()
     stuck, quick = Stuck.remote(), Stuck.remote()
+    # Both started first: on a busy machine starting an actor takes seconds of its own, which
+    # would count towards the deadline under test.
+    ray.get([stuck.collect.remote(0.0), quick.collect.remote(0.0)])
     slow_slot, quick_slot = WorkerSlot(0, stuck), WorkerSlot(1, quick)
     now = time.perf_counter()
     slow_slot.call_started = quick_slot.call_started = now
