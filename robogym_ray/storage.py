@@ -291,11 +291,13 @@ def local_file(location: str | os.PathLike, what: str = "file") -> str:
     if not is_uri(location):
         return location
     base, query = _split_query(location)
-    parts = base.split("/")
-    keep = 2 if len(parts) > 4 and parts[-2] == "checkpoints" else 1  # RUN/checkpoints/FILE
-    top = "/".join(parts[: -keep - 1])
+    scheme, _, rest = base.partition("://")
+    segs = rest.split("/")  # bucket, folders..., file name
+    run_file = len(segs) >= 4 and segs[-2] == "checkpoints"  # BUCKET/.../RUN/checkpoints/FILE
+    n_tail = min(3 if run_file else 2, len(segs) - 1)  # the folder it is in, the bucket kept
+    top = f"{scheme}://{'/'.join(segs[:-n_tail])}"
     store = RunStorage(f"{top}?{query}" if query else top)
-    tail = "/".join(parts[-keep - 1 :])
+    tail = "/".join(segs[-n_tail:])
     local = Path(tempfile.mkdtemp(prefix="robogym-ray-fetch-")) / tail
     if not store.download(tail, local):
         raise ConfigError(f"{what} {location}: no such object")
@@ -304,7 +306,7 @@ def local_file(location: str | os.PathLike, what: str = "file") -> str:
             store.download(f"{tail}{companion[len(local.name) :]}", local.parent / companion)
     sidecar = tail.rsplit(".", 1)[0] + ".json"
     store.download(sidecar, local.parent / Path(sidecar).name)
-    if keep == 2:
+    if run_file:
         run = tail.split("/")[0]
         store.download(f"{run}/config.json", local.parent.parent / "config.json")
     return str(local)

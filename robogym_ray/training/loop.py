@@ -115,9 +115,10 @@ class TrainingLoop:
         self.stopped_by: str | None = None
         """What asked for that stop (``SIGINT``, ``SIGTERM``), for the summary."""
         self.failure: RunStoppedError | None = None
-        self._lost_status: dict[str, Any] = {}
         """What ends the run without retrying: a file it could not write (a full disk), a
         learner restarted with nothing to restore."""
+        self._lost_status: dict[str, Any] = {}
+        """The status of a learner restarted with nothing to restore (killed since)."""
         self._replies: list[Any] = []
         """Calls whose answers are not needed but whose errors must be taken (``set_weights``
         after a learner death fails): Ray prints an "Unhandled error" for any it drops."""
@@ -261,6 +262,8 @@ class TrainingLoop:
             except (RayActorError, OwnerDiedError):  # learner died, or the worker that sent it
                 # This batch is lost (lost_transitions counts it); the next ones go to the
                 # learner Ray restarted from its checkpoint. One death, one failure.
+                if isinstance(self.failure, LearnerLostError):
+                    continue  # the learner was killed on purpose: not another death
                 failed_at = self._wall()
                 if self.learner_deaths.call_failed():
                     self.stats.learner_failures = self.learner_deaths.count

@@ -39,11 +39,10 @@ def wait_for(check, timeout: float, what: str) -> None:  # type: ignore[no-untyp
     raise TimeoutError(f"timed out after {timeout} s waiting for {what}")
 
 
-def cluster_cpus(address: str, env: dict[str, str]) -> float:
-    code = (
-        f"import ray; ray.init(address={address!r}, logging_level='ERROR'); "
-        "print(ray.cluster_resources().get('CPU', 0))"
-    )
+def ask_cluster(address: str, env: dict[str, str], expression: str) -> float:
+    """``expression`` evaluated by a driver that joins the cluster at ``address`` (0 when the
+    cluster does not answer)."""
+    code = f"import ray; ray.init(address={address!r}, logging_level='ERROR'); print({expression})"
     out = subprocess.run(
         [sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=60
     )
@@ -53,19 +52,13 @@ def cluster_cpus(address: str, env: dict[str, str]) -> float:
         return 0.0
 
 
+def cluster_cpus(address: str, env: dict[str, str]) -> float:
+    return ask_cluster(address, env, "ray.cluster_resources().get('CPU', 0)")
+
+
 def alive_nodes(address: str, env: dict[str, str]) -> int:
     """How many nodes of the cluster at ``address`` are alive (0: it does not answer)."""
-    code = (
-        f"import ray; ray.init(address={address!r}, logging_level='ERROR'); "
-        "print(sum(n['Alive'] for n in ray.nodes()))"
-    )
-    out = subprocess.run(
-        [sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=60
-    )
-    try:
-        return int(out.stdout.strip().splitlines()[-1])
-    except (ValueError, IndexError):
-        return 0
+    return int(ask_cluster(address, env, "sum(n['Alive'] for n in ray.nodes())"))
 
 
 @contextmanager

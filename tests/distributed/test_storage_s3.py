@@ -15,8 +15,6 @@ from typing import Any
 
 import pytest
 
-pytestmark = [pytest.mark.slow]
-
 BUCKET = "robogym"
 
 
@@ -56,6 +54,7 @@ def keys(client: Any, prefix: str) -> list[str]:
     return sorted(o["Key"][len(prefix) :] for o in listing.get("Contents", []))
 
 
+@pytest.mark.slow
 def test_a_run_on_s3_storage_and_reading_it_back(s3: Any, tmp_path: Path) -> None:
     storage = f"s3://{BUCKET}/runs"
     common = ["--task", "navigation", "--workers", "1", "--envs-per-worker", "2",
@@ -93,3 +92,48 @@ def test_a_run_on_s3_storage_and_reading_it_back(s3: Any, tmp_path: Path) -> Non
     assert second["learner_restored_from_step"] == summary["learner_steps"]
     assert second["learner_restored_replay"] > 0
     assert "checkpoints/learner.pt" in keys(s3, "runs/second/")
+
+
+def test_storage_files_on_s3_and_on_a_path(s3: Any, tmp_path: Path) -> None:
+    """The same RunStorage calls on an object store and a local path; single files fetched with
+    what sits beside them, from the top of a bucket too."""
+    from robogym_ray.errors import ConfigError
+    from robogym_ray.storage import RunStorage, is_uri, local_file, read_text
+
+    for root in (f"s3://{BUCKET}/unit/run", str(tmp_path / "unit" / "run")):
+        store = RunStorage(root)
+        assert store.is_local == (not is_uri(root))
+        assert not store.holds_run() and store.names("checkpoints") == []
+        store.write_bytes("config.json", b'{"train": {}}', "config")
+        store.write_bytes("checkpoints/learner.pt", b"nets", "checkpoint")
+        store.write_bytes("checkpoints/learner.pt.replay.npz", b"replay", "replay")
+        assert store.holds_run() and store.exists("checkpoints/learner.pt")
+        assert store.names("checkpoints") == ["learner.pt", "learner.pt.replay.npz"]
+        assert read_text(store.location("config.json")) == '{"train": {}}'
+        store.delete("checkpoints/learner.pt.replay.npz")
+        assert store.names("checkpoints") == ["learner.pt"]
+    local = Path(local_file(f"s3://{BUCKET}/unit/run/checkpoints/learner.pt"))
+    assert local.read_bytes() == b"nets"
+    assert (local.parent.parent / "config.json").read_text() == '{"train": {}}'
+    s3.put_object(Bucket=BUCKET, Key="nav.pt", Body=b"policy")
+    s3.put_object(Bucket=BUCKET, Key="nav.json", Body=b"{}")
+    top = Path(local_file(f"s3://{BUCKET}/nav.pt"))
+    assert top.read_bytes() == b"policy" and (top.parent / "nav.json").read_text() == "{}"
+    with pytest.raises(ConfigError, match="no such object"):
+        local_file(f"s3://{BUCKET}/missing.pt", "policy")
+    assert local_file(str(tmp_path / "x.pt")) == str(tmp_path / "x.pt")  # a path as it is
+
+
+def test_a_relative_storage_in_a_ray_job_lands_on_the_head(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from robogym_ray.storage import resolve_root
+
+    job_copy = "/tmp/ray/session_x/runtime_resources/working_dir_files/_ray_pkg_abc"
+    monkeypatch.setenv("ROBOGYM_RAY_RESULTS", str(tmp_path / "results"))
+    assert resolve_root("runs", cwd=job_copy) == str(tmp_path / "results" / "runs")
+    assert resolve_root("runs", cwd="/home/me/project") == "/home/me/project/runs"
+    assert resolve_root("/data/runs", cwd=job_copy) == "/data/runs"
+    assert resolve_root("s3://b/runs", cwd=job_copy) == "s3://b/runs"
+    monkeypatch.delenv("ROBOGYM_RAY_RESULTS")
+    assert resolve_root("runs", cwd=job_copy) == str(Path.home() / "robogym_ray_results" / "runs")

@@ -309,6 +309,46 @@ def test_pendulum_runs_without_a_supervisor(tmp_path: Path) -> None:
     assert summary["env_steps"] >= 600 and not any(summary["restarts"].values())
 
 
+def test_a_learner_restarted_with_nothing_to_restore_ends_the_run(tmp_path: Path) -> None:
+    """No checkpoint (--checkpoint-every 0): the learner Ray restarts after a kill finds
+    nothing, so the run stops in one line saying what was lost, rather than train on from
+    scratch as if it were the same run; no checkpoint of fresh networks is written."""
+    from robogym_ray.errors import LearnerLostError
+
+    run = "lost"
+    cfg = pendulum(tmp_path, run, 10_000_000, max_wall_s=120.0, checkpoint_every=0,
+                   replay_snapshot_every_s=0.0, evaluator=False)  # fmt: skip
+    done, log = threading.Event(), []
+
+    def learner() -> Any:
+        return ray.get_actor(f"learner-{run}", namespace=remote.NAMESPACE)
+
+    def trained() -> bool:
+        return int(ray.get(learner().status.remote())["version"]) >= 50
+
+    def learner_pid() -> int:
+        return int(ray.get(learner().status.remote())["pid"])
+
+    killer = threading.Thread(target=_kill_when, args=(trained, learner_pid, done, log))
+    killer.start()
+    try:
+        with pytest.raises(LearnerLostError) as info:
+            run_training(cfg, {"min_replay_size": 256})
+    finally:
+        done.set()
+        killer.join()
+    message = str(info.value)
+    assert message.startswith("the learner restarted on ") and "found no checkpoint" in message
+    assert "learner steps it had taken and its replay are lost" in message, message
+    assert "\n" not in message
+    summary = json.loads((tmp_path / run / "summary.json").read_text())
+    assert summary["ended"] == "failed" and message.startswith(summary["error"])
+    assert message.endswith(f"no checkpoint; summary: {tmp_path / run / 'summary.json'}")
+    assert summary["checkpoint"] is None
+    assert not (tmp_path / run / "checkpoints" / "learner.pt").exists()
+    assert any(line.startswith("killed") for line in log), log
+
+
 def test_a_run_continues_from_another_runs_checkpoint_and_replay(tmp_path: Path) -> None:
     common = dict(task="pendulum", workers=1, logdir=str(tmp_path), progress=False)
     small = {"min_replay_size": 256}
