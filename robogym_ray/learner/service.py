@@ -59,8 +59,8 @@ class LearnerService:
         self.storage = storage.child("checkpoints") if storage is not None else None
         if self.storage is not None:
             checkpoint_dir = str(self.storage.staging(""))
-            for name in (replay_path(CHECKPOINT_NAME).name, CHECKPOINT_NAME):
-                if not self.storage.is_local:  # the staging folder is empty: fetch the latest
+            if not self.storage.is_local:  # an empty staging folder: fetch the latest
+                for name in (replay_path(CHECKPOINT_NAME).name, CHECKPOINT_NAME):
                     self.storage.download(name, Path(checkpoint_dir) / name)
         self.checkpoint_dir = Path(checkpoint_dir) if checkpoint_dir else None
         self.checkpoint_every = checkpoint_every
