@@ -67,6 +67,30 @@ def exp_kernel(d: float, a: float, b: float) -> float:
     return e / (1.0 + b * e + e * e)
 
 
+MAX_KEYPOINT_ERROR = 3.4
+"""A bound on ``d`` (m): the arm reaches 1.3 m and the commands lie within 1.2 m of ``base``, so
+the frames' origins are at most 2.5 m apart, and a keypoint 0.45 m out adds at most 0.9 m."""
+
+
+def action_high(max_velocity: np.ndarray, scale: float = 0.0625) -> np.ndarray:
+    """The action bounds: offsets that move each joint at up to its speed limit (see the class)."""
+    return np.asarray(max_velocity, dtype=np.float64) * MIN_DURATION / scale
+
+
+def step_reward_range(action_high: np.ndarray, rate: float = 60.0) -> tuple[float, float]:
+    """The bounds of one step's reward for actions within ``+-action_high``.
+
+    Best: on target, no action (three exponential terms of 1 / (2 + b) each). Worst: ``d`` at
+    ``MAX_KEYPOINT_ERROR`` and every action at a bound with the sign flipped from the step
+    before, so ``|a|^2 + |a - a_prev|^2 = 5 |a|^2``. The action terms dominate: with the
+    UR10e's bounds they are ~95 % of the worst step.
+    """
+    best = EXP_WEIGHT * sum(1.0 / (2.0 + b) for _, b in EXP_COEFFS)
+    squares = float(np.sum(np.square(np.asarray(action_high, dtype=np.float64))))
+    worst = TRACKING_WEIGHT * MAX_KEYPOINT_ERROR + ACTION_WEIGHT * 5.0 * squares
+    return worst / rate, best / rate
+
+
 class IsaacDeployReachUR(PoseTask, UR2Arm):
     """Isaac Lab 3's ``Isaac-Deploy-Reach-UR10e-v0``: track a pose command with ``wrist_3_link``.
 
@@ -174,7 +198,7 @@ class IsaacDeployReachUR(PoseTask, UR2Arm):
         # The UR server turns a target into a trajectory of at least MIN_DURATION (robo-gym's
         # ROS bridge does), so an offset moves the joint at offset / MIN_DURATION: these bounds
         # span the joint speeds up to the UR10e's limits, and no further.
-        reach = np.asarray(self.model.max_velocity) * MIN_DURATION / self.scale
+        reach = action_high(self.model.max_velocity, self.scale)
         return spaces.Box(-reach.astype(np.float32), reach.astype(np.float32), dtype=np.float32)
 
     def _obs_bounds(self) -> tuple[list[float], list[float]]:

@@ -7,6 +7,7 @@ hyperparameters known to suit the task.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -14,8 +15,10 @@ from typing import Any
 import gymnasium as gym
 
 from robogym_ray.config import merge_config
+from robogym_ray.envs.ur_deploy_reach import action_high, step_reward_range
 from robogym_ray.errors import ConfigError
 from robogym_ray.learner.config import D4PGConfig
+from robogym_ray.robots.ur.geometry import UR_MODELS
 from robogym_ray.text import did_you_mean
 
 
@@ -46,7 +49,19 @@ _PENDULUM = {
 _POSITIONING = {"v_min": -250.0, "v_max": 250.0, "layer_norm": True, "min_replay_size": 500}
 _PANDA_POSITIONING = {**_POSITIONING, "v_min": -5.0, "v_max": 5.0}
 _ISAAC_REACH = {**_POSITIONING, "v_min": -20.0, "v_max": 5.0}
-_DEPLOY_REACH = {**_POSITIONING, "v_min": -6.0, "v_max": 4.0}
+
+
+def _deploy_reach_support(discount: float = 0.99) -> dict[str, float]:
+    """``[v_min, v_max]`` from the reward's range per step over the env's action bounds, times
+    the horizon 1 / (1 - discount), rounded outwards to whole units (the rule of
+    ``learner.config``): about [-138, 4] for the UR10e, atoms 2.8 apart."""
+    high = action_high(UR_MODELS["ur10e"].max_velocity)
+    worst, best = step_reward_range(high)
+    horizon = 1.0 / (1.0 - discount)
+    return {"v_min": float(math.floor(worst * horizon)), "v_max": float(math.ceil(best * horizon))}
+
+
+_DEPLOY_REACH = {**_POSITIONING, **_deploy_reach_support()}
 _NAVIGATION = {"v_min": -300.0, "v_max": 450.0, "layer_norm": True, "min_replay_size": 500}
 
 TASKS: dict[str, TaskPreset] = {
@@ -70,9 +85,11 @@ TASKS: dict[str, TaskPreset] = {
     # end the episode; truncation at 600 steps bootstraps, so the worst value is ~-0.167 x 100
     # (gamma 0.99) = -16.7 and the best +2: [-20, 5] leaves a margin (atoms 0.5 apart).
     "isaac-reach-ur10": TaskPreset("RoboGymRay/IsaacReachUR10Sim-v0", _ISAAC_REACH),
-    # Isaac Lab 3's deploy reach (UR10e): its keypoint reward times 1/60 s per step, between
-    # about -0.05 (2 m off) and +0.0375 (on target), never ending but by the time limit, so the
-    # discounted value (gamma 0.99, ~100 steps) lies in about [-5, 3.75]: [-6, 4] (atoms 0.2).
+    # Isaac Lab 3's deploy reach (UR10e): its keypoint reward times 1/60 s per step, plus the
+    # action and action-rate L2 terms, which dominate at the env's wide bounds; episodes end only
+    # by the time limit, so the support is the per-step range times the horizon (see
+    # _deploy_reach_support). The first preset, [-6, 4], left out the action terms: its 50-min
+    # run's returns (~-26 discounted) lay below the support (results-log.md, 2026-11-26).
     "isaac-deploy-reach-ur10e": TaskPreset("RoboGymRay/IsaacDeployReachUR10eSim-v0", _DEPLOY_REACH),
     # Pendulum: the preset proven by benchmarks/pendulum.py (the local trainer applies it too).
     "pendulum": TaskPreset("Pendulum-v1", _PENDULUM),

@@ -143,6 +143,28 @@ def test_a_command_reached_scores_the_top_reward() -> None:
         env.close()
 
 
+def test_bang_bang_actions_stay_inside_the_rewards_range_and_the_presets_support() -> None:
+    """The worst step (actions at the bounds, sign flipped each step) lies inside
+    step_reward_range, and the preset's support covers that range over the horizon."""
+    from robogym_ray.envs.ur_deploy_reach import step_reward_range
+    from robogym_ray.training.presets import TASKS
+
+    env = gym.make(SIM)
+    try:
+        high = env.action_space.high.astype(np.float64)
+        worst, best = step_reward_range(high)
+        env.reset(seed=2)
+        rewards = [env.step((-1) ** t * env.action_space.high)[1] for t in range(12)]
+        assert all(worst <= r <= best for r in rewards), (worst, rewards, best)
+        # Past the first step every step pays 5 |a|^2: the bound is tight but for d.
+        assert min(rewards[1:]) < 0.9 * worst
+        d4pg = TASKS["isaac-deploy-reach-ur10e"].d4pg
+        assert d4pg["v_min"] <= 100 * worst < 0.98 * d4pg["v_min"]
+        assert 100 * best <= d4pg["v_max"] < 100 * best + 1
+    finally:
+        env.close()
+
+
 def test_rob_variant_on_a_robot_server_and_bad_kwargs() -> None:
     robot, scene, options = gym.make(SIM).unwrapped.server_spec()
     handle = start_robot_server(robot, scene=scene, options=options, seed=0)
