@@ -22,7 +22,9 @@ Ray mechanisms used, and why:
 
 from __future__ import annotations
 
+import dataclasses
 import logging
+import math
 import os
 import socket
 import time
@@ -34,6 +36,7 @@ from ray.exceptions import GetTimeoutError, RayActorError
 from robogym_ray.distributed.names import NAMESPACE, SUPERVISOR_NAME
 from robogym_ray.experience.evaluator import Evaluator
 from robogym_ray.experience.rollout import RolloutResult, RolloutWorker
+from robogym_ray.learner.config import D4PGConfig
 from robogym_ray.learner.service import LearnerService
 from robogym_ray.realrobot.robot import RealRobot
 from robogym_ray.realrobot.safety import SafetyConfig
@@ -264,9 +267,33 @@ class _Evaluator(Evaluator):
 
 
 class _Learner(LearnerService):
+    def __init__(self, d4pg: D4PGConfig, *args: Any, **kwargs: Any) -> None:
+        if d4pg.num_threads == 0:
+            # The CPUs Ray reserved for this actor are its threads: a learner given 8 cores
+            # uses 8 without a second setting. Ray's own OMP_NUM_THREADS comes too late for a
+            # torch imported before the actor starts, and a user's shell may have set it.
+            d4pg = dataclasses.replace(d4pg, num_threads=assigned_threads())
+        super().__init__(d4pg, *args, **kwargs)
+
     def status(self) -> dict[str, Any]:
-        """``LearnerService.status`` and the node it runs on (it moves with a lost node)."""
-        return {**super().status(), "node": node_label()}
+        """``LearnerService.status``, the node it runs on (it moves with a lost node), its torch
+        threads and device."""
+        import torch
+
+        learner = self.learner
+        return {
+            **super().status(),
+            "node": node_label(),
+            "threads": torch.get_num_threads(),
+            "device": str(learner.device),
+        }
+
+
+def assigned_threads() -> int:
+    """Ray's CPUs for this actor as a thread count: rounded down, at least 1 (Ray's rule for
+    OMP_NUM_THREADS)."""
+    cpus = ray.get_runtime_context().get_assigned_resources().get("CPU", 1.0)
+    return max(1, math.floor(cpus + 1e-9))
 
 
 def node_label() -> str:

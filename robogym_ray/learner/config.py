@@ -22,6 +22,8 @@ from dataclasses import dataclass
 
 from robogym_ray.errors import ConfigError
 
+COMPILE_MODES = ("", "default", "reduce-overhead", "max-autotune")
+
 
 @dataclass(frozen=True)
 class D4PGConfig:
@@ -100,7 +102,21 @@ class D4PGConfig:
     device: str = "auto"
     """Learner device: 'auto' picks CUDA when present, else CPU; or any torch device string."""
     num_threads: int = 0
-    """torch intra-op threads for the learner process; 0 leaves torch's default."""
+    """torch intra-op threads for the learner; 0 = the CPUs Ray gives the learner actor (its
+    ``--learner-cpus``, at least 1), or torch's default outside Ray."""
+    replay_device: str = "auto"
+    """Where the replay and its priority trees live: 'host' (NumPy in memory), 'learner' (torch
+    tensors on the learner's device: sampling without a host round trip), or 'auto' (the device
+    when it is not the CPU). Both sample the same transitions for one seed."""
+    sgd_steps_per_sample: int = 1
+    """Learner steps taken from one sampled block of this many batches (Acme's
+    ``num_sgd_steps_per_step``); priorities written in a block apply from the next one. 1 samples
+    before every step."""
+    compile: str = ""
+    """torch.compile mode for the loss computations ('default', 'reduce-overhead' (CUDA graphs
+    on a GPU), 'max-autotune'); empty: not compiled. The first steps pay the compilation."""
+    bf16: bool = False
+    """Run the networks under bf16 autocast (the losses and the optimizer stay float32)."""
 
     def __post_init__(self) -> None:
         checks = [
@@ -140,6 +156,25 @@ class D4PGConfig:
                 "in [0, 1]",
             ),
             (self.sigma >= 0.0, "sigma", self.sigma, ">= 0"),
+            (self.num_threads >= 0, "num_threads", self.num_threads, ">= 0"),
+            (
+                self.replay_device in ("auto", "host", "learner"),
+                "replay_device",
+                self.replay_device,
+                "'auto', 'host' or 'learner'",
+            ),
+            (
+                self.sgd_steps_per_sample >= 1,
+                "sgd_steps_per_sample",
+                self.sgd_steps_per_sample,
+                ">= 1",
+            ),
+            (
+                self.compile in COMPILE_MODES,
+                "compile",
+                self.compile,
+                " or ".join(repr(m) for m in COMPILE_MODES),
+            ),
         ]
         for ok, name, value, expected in checks:
             if not ok:

@@ -1,13 +1,18 @@
 """The D4PG learner: owns replay, networks, targets and optimizers; no Ray in here.
 
 Data path: actors insert n-step transitions (with initial priorities, or the running max) via
-:meth:`D4PGLearner.add`; :meth:`step` samples a prioritized batch, takes one gradient step on
-critic and policy and writes the per-sample critic loss back as the new priorities;
+:meth:`D4PGLearner.add`; :meth:`run` samples prioritized batches, takes a gradient step on
+critic and policy per batch and writes the per-sample critic loss back as the new priorities;
 :meth:`get_weights` hands the policy to actors as plain CPU arrays.
+
+One code path for every device: on a GPU the replay lives on the device (``replay_device``),
+the losses may be compiled (``compile``) and run in bf16 (``bf16``), and a call's metrics come
+to the host once; the CPU tests run the same code with the same switches.
 """
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import os
 from typing import Any
@@ -25,7 +30,7 @@ from robogym_ray.learner.distributional import (
     make_support,
 )
 from robogym_ray.learner.networks import DistributionalCritic, Policy
-from robogym_ray.learner.replay import PrioritizedReplay
+from robogym_ray.learner.replay import Backend, PrioritizedReplay
 
 
 def pick_device(name: str = "auto") -> torch.device:
@@ -84,10 +89,20 @@ class D4PGLearner:
         self.critic_opt = make_adam(self.critic.parameters(), c.critic_lr)
         self.support = make_support(c.v_min, c.v_max, c.num_atoms, self.device)
         alpha = c.priority_exponent if c.prioritized else 0.0  # alpha 0 == uniform sampling
-        self.replay = PrioritizedReplay(
-            c.replay_capacity, obs_dim, act_dim, alpha, c.priority_eps, seed=seed
+        on_device = c.replay_device == "learner" or (
+            c.replay_device == "auto" and self.device.type != "cpu"
         )
+        self.replay = PrioritizedReplay(
+            c.replay_capacity, obs_dim, act_dim, alpha, c.priority_eps, seed=seed,
+            backend=Backend.torch_on(self.device) if on_device else None,
+        )  # fmt: skip
         self.num_steps = 0
+        self._critic_loss_fn, self._policy_loss_fn = self._critic_loss, self._policy_loss
+        if c.compile:
+            # The losses (forward and backward) are compiled; the fused optimizer steps and the
+            # replay stay as they are. "reduce-overhead" adds CUDA graphs on a GPU.
+            self._critic_loss_fn = torch.compile(self._critic_loss, mode=c.compile)
+            self._policy_loss_fn = torch.compile(self._policy_loss, mode=c.compile)
 
     # --- data in ------------------------------------------------------------------------
     def add(self, batch: dict[str, np.ndarray], priorities: np.ndarray | None = None) -> None:
@@ -128,64 +143,111 @@ class D4PGLearner:
 
     def _target_distribution(self, b: dict[str, torch.Tensor]) -> torch.Tensor:
         with torch.no_grad():
-            next_logits = self.target_critic(b["next_obs"], self.target_policy(b["next_obs"]))
+            next_obs = b["next_obs"]
+            next_logits = self.target_critic(next_obs, self.target_policy(next_obs)).float()
             return categorical_projection(
                 torch.softmax(next_logits, -1), b["reward"], b["discount"], self.support
             )
 
     def step(self) -> dict[str, float]:
-        """One learner step: sample, critic + policy update, priorities, targets.
+        """One learner step (``run(1)``)."""
+        return self.run(1)
+
+    def run(self, steps: int) -> dict[str, float]:
+        """``steps`` learner steps: sample, critic + policy update, priorities, targets.
+
+        Blocks of ``sgd_steps_per_sample`` batches are sampled at once (strided, so each batch
+        spans every priority stratum); with 1 (the default) each step samples after the
+        previous one's priorities, as always. Metrics stay on the device until the end of the
+        call and come to the host in one copy.
 
         Returns:
-            Metrics: critic_loss, policy_loss, mean_q, mean_priority, beta, grad norms, steps.
+            Metrics averaged over the steps: critic_loss, policy_loss, mean_q, mean_priority,
+            beta, lr_scale, grad norms; and steps (the learner's total).
         """
         c = self.config
-        beta = self.beta
-        lr_scale = self._apply_lr()
-        batch, idx, weights = self.replay.sample(c.batch_size, beta)
-        b = self._to_tensors(batch)
-        w = torch.as_tensor(weights, device=self.device)
-        target = self._target_distribution(b)
+        if steps <= 0:
+            return {}
+        sums, beta_sum, lr_sum, done = None, 0.0, 0.0, 0
+        while done < steps:
+            k = min(c.sgd_steps_per_sample, steps - done)
+            beta = self.beta
+            batch, idx, weights = self.replay.sample(k * c.batch_size, beta)
+            block = self._to_tensors(batch)
+            w = torch.as_tensor(weights, device=self.device)
+            for j in range(k):
+                part = slice(j, None, k)
+                lr_sum += self._apply_lr()
+                b = {key: v[part] for key, v in block.items()}
+                stats, per_sample = self._update(b, w[part])
+                if c.prioritized:
+                    # A host replay takes NumPy (a CPU learner copies nothing); a device
+                    # replay keeps the priorities where they were computed.
+                    on_host = self.replay.backend.on_host
+                    self.replay.update_priorities(
+                        idx[part], per_sample.cpu().numpy() if on_host else per_sample
+                    )
+                self.num_steps += 1
+                self._update_targets()
+                sums = stats if sums is None else sums + stats
+                beta_sum += beta
+            done += k
+        mean = (sums / steps).cpu().numpy()  # the call's one device->host copy
+        return {
+            "critic_loss": float(mean[0]),
+            "policy_loss": float(mean[1]),
+            "mean_q": -float(mean[1]),
+            "mean_priority": float(mean[4]),
+            "critic_grad_norm": float(mean[2]),
+            "policy_grad_norm": float(mean[3]),
+            "beta": beta_sum / steps,
+            "lr_scale": lr_sum / steps,
+            "steps": float(self.num_steps),
+        }
 
-        logits = self.critic(b["obs"], b["action"])
+    def _critic_loss(
+        self, b: dict[str, torch.Tensor], w: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """The importance-weighted cross-entropy to the projected target, and per sample."""
+        with self._autocast():
+            target = self._target_distribution(b)
+            logits = self.critic(b["obs"], b["action"]).float()
         per_sample = categorical_cross_entropy(logits, target)
-        critic_loss = (w * per_sample).mean()
+        return (w * per_sample).mean(), per_sample.detach()
+
+    def _policy_loss(self, obs: torch.Tensor) -> torch.Tensor:
+        """DPG: minus the critic's mean of the policy's action."""
+        with self._autocast():
+            logits = self.critic(obs, self.policy(obs)).float()
+        return -expected_value(logits, self.support).mean()
+
+    def _update(
+        self, b: dict[str, torch.Tensor], w: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """One gradient step of each network; (stats on the device, per-sample losses)."""
+        critic_loss, per_sample = self._critic_loss_fn(b, w)
         self.critic_opt.zero_grad(set_to_none=True)
         critic_loss.backward()
         critic_norm = self._clip(self.critic)
         self.critic_opt.step()
 
-        # DPG: maximise the critic's mean. Only policy gradients are requested, so autograd
-        # skips the critic's weight gradients (about a third of the backward work).
-        q = expected_value(self.critic(b["obs"], self.policy(b["obs"])), self.support)
-        policy_loss = -q.mean()
+        # Only policy gradients are requested, so autograd skips the critic's weight gradients
+        # (about a third of the backward work).
+        policy_loss = self._policy_loss_fn(b["obs"])
         params = list(self.policy.parameters())
         for p, g in zip(params, torch.autograd.grad(policy_loss, params), strict=True):
             p.grad = g
         policy_norm = self._clip(self.policy)
         self.policy_opt.step()
+        losses = (critic_loss.detach(), policy_loss.detach(), critic_norm, policy_norm)
+        stats = torch.stack([*(x.float() for x in losses), per_sample.mean()])
+        return stats, per_sample
 
-        priorities = per_sample.detach().cpu().numpy()
-        if c.prioritized:
-            self.replay.update_priorities(idx, priorities)
-        self.num_steps += 1
-        self._update_targets()
-        stats = (
-            torch.stack([critic_loss.detach(), policy_loss.detach(), critic_norm, policy_norm])
-            .cpu()
-            .numpy()
-        )  # one device->host copy
-        return {
-            "critic_loss": float(stats[0]),
-            "policy_loss": float(stats[1]),
-            "mean_q": -float(stats[1]),
-            "mean_priority": float(priorities.mean()),
-            "critic_grad_norm": float(stats[2]),
-            "policy_grad_norm": float(stats[3]),
-            "beta": beta,
-            "lr_scale": lr_scale,
-            "steps": float(self.num_steps),
-        }
+    def _autocast(self) -> contextlib.AbstractContextManager:
+        """bf16 autocast around the networks when ``bf16`` is set (losses stay float32)."""
+        if not self.config.bf16:
+            return contextlib.nullcontext()
+        return torch.autocast(self.device.type, dtype=torch.bfloat16)
 
     def _clip(self, net: nn.Module) -> torch.Tensor:
         if self.config.max_grad_norm > 0:

@@ -3,6 +3,12 @@
 All tree operations work on whole batches: updates propagate level by level with NumPy fancy
 indexing, and sampling descends the tree for every sample at once (``log2(capacity)`` vector
 steps per batch, no Python loop per sample).
+
+One implementation for two homes: NumPy arrays in host memory (the CPU learner's, as always), or
+torch tensors on the learner's device (``Backend.torch``), so a GPU learner samples, gathers and
+writes priorities back without a host round trip. The tree arithmetic is the same float64
+operations in the same order on both, and the uniform draws come from the same host NumPy
+generator, so for one seed and insert order both sample the same indices with the same weights.
 """
 
 from __future__ import annotations
@@ -16,6 +22,54 @@ from robogym_ray.errors import ConfigError
 FIELDS = ("obs", "action", "reward", "discount", "next_obs")
 
 
+class Backend:
+    """Where the replay's arrays live: host NumPy (``Backend()``) or a torch device."""
+
+    def __init__(self, device: Any = None) -> None:
+        self.device = device
+        """``None``: NumPy in host memory; else the ``torch.device`` holding every array."""
+        if device is not None:
+            import torch  # only the learner's process pays for torch here
+
+            self.torch = torch
+
+    @classmethod
+    def torch_on(cls, device: Any) -> Backend:
+        import torch
+
+        return cls(torch.device(device))
+
+    @property
+    def on_host(self) -> bool:
+        return self.device is None
+
+    def full(self, n: int, value: Any, dtype: str = "float64") -> Any:
+        if self.on_host:
+            return np.full(n, value, dtype=dtype)
+        out = self.torch.empty(n, dtype=getattr(self.torch, dtype), device=self.device)
+        return out.copy_(self.asarray(value).expand(n)) if n else out
+
+    def zeros(self, shape: tuple[int, ...], dtype: str) -> Any:
+        if self.on_host:
+            return np.zeros(shape, dtype)
+        return self.torch.zeros(shape, dtype=getattr(self.torch, dtype), device=self.device)
+
+    def asarray(self, value: Any, dtype: str | None = None) -> Any:
+        """``value`` (array, tensor or number) here, in ``dtype`` when given."""
+        if self.on_host:
+            return np.asarray(value, dtype=dtype)
+        t = self.torch
+        out = t.as_tensor(value, device=self.device)
+        return out.to(getattr(t, dtype)) if dtype is not None else out
+
+    def to_numpy(self, value: Any) -> np.ndarray:
+        return value if self.on_host else value.detach().cpu().numpy()
+
+    def op(self, name: str) -> Any:
+        """``add`` or ``minimum``, elementwise, of this backend."""
+        return getattr(np if self.on_host else self.torch, name)
+
+
 class SegmentTree:
     """Complete binary tree over ``capacity`` leaves (rounded up to a power of two).
 
@@ -23,16 +77,19 @@ class SegmentTree:
     the root. ``op`` is ``np.add`` (sum tree) or ``np.minimum`` (min tree).
     """
 
-    def __init__(self, capacity: int, op: np.ufunc, neutral: float) -> None:
+    def __init__(
+        self, capacity: int, op: str, neutral: float, backend: Backend | None = None
+    ) -> None:
         self.size = 1 << max(0, int(capacity - 1).bit_length())
         self.depth = self.size.bit_length() - 1
-        self.op = op
+        self.backend = backend or Backend()
+        self.op = self.backend.op(op)
         self.neutral = neutral
-        self.nodes = np.full(2 * self.size, neutral, dtype=np.float64)
+        self.nodes = self.backend.full(2 * self.size, neutral)
 
-    def update(self, indices: np.ndarray, values: np.ndarray) -> None:
+    def update(self, indices: Any, values: Any) -> None:
         """Set leaves ``indices`` to ``values`` (last write wins on duplicates) and re-reduce."""
-        idx = np.asarray(indices, dtype=np.int64) + self.size
+        idx = self.backend.asarray(indices, "int64") + self.size
         self.nodes[idx] = values
         for _ in range(self.depth):
             # Children are final before their parents are written, so duplicate parents all get
@@ -40,33 +97,38 @@ class SegmentTree:
             idx = idx >> 1
             self.nodes[idx] = self.op(self.nodes[2 * idx], self.nodes[2 * idx + 1])
 
-    def leaves(self, indices: np.ndarray) -> np.ndarray:
-        return self.nodes[np.asarray(indices, dtype=np.int64) + self.size]
+    def leaves(self, indices: Any) -> Any:
+        return self.nodes[self.backend.asarray(indices, "int64") + self.size]
 
     @property
     def root(self) -> float:
         return float(self.nodes[1])
 
+    @property
+    def root_value(self) -> Any:
+        """The root where it lives (a device tensor: reading it as a float would wait on it)."""
+        return self.nodes[1]
+
 
 class SumTree(SegmentTree):
-    def __init__(self, capacity: int) -> None:
-        super().__init__(capacity, np.add, 0.0)
+    def __init__(self, capacity: int, backend: Backend | None = None) -> None:
+        super().__init__(capacity, "add", 0.0, backend)
 
-    def find_prefix(self, mass: np.ndarray) -> np.ndarray:
+    def find_prefix(self, mass: Any) -> Any:
         """Leaf index ``i`` per query with ``sum(p[:i]) <= mass < sum(p[:i+1])``, vectorized."""
-        mass = np.array(mass, dtype=np.float64)
-        idx = np.ones(mass.shape, dtype=np.int64)
+        mass = self.backend.asarray(mass, "float64")
+        idx = self.backend.full(len(mass), 1, "int64")
         for _ in range(self.depth):
             left = self.nodes[2 * idx]
             go_right = mass >= left
-            mass = np.where(go_right, mass - left, mass)
+            mass = mass - left * go_right  # exact: left or 0 subtracted, as np.where did
             idx = 2 * idx + go_right
         return idx - self.size
 
 
 class MinTree(SegmentTree):
-    def __init__(self, capacity: int) -> None:
-        super().__init__(capacity, np.minimum, np.inf)
+    def __init__(self, capacity: int, backend: Backend | None = None) -> None:
+        super().__init__(capacity, "minimum", np.inf, backend)
 
 
 class PrioritizedReplay:
@@ -85,19 +147,22 @@ class PrioritizedReplay:
         alpha: float = 0.6,
         eps: float = 1e-6,
         seed: int | None = None,
+        backend: Backend | None = None,
     ) -> None:
         if capacity < 1:
             raise ConfigError(f"replay capacity={capacity}; expected >= 1")
         self.capacity, self.alpha, self.eps = capacity, alpha, eps
-        self.storage: dict[str, np.ndarray] = {
-            "obs": np.zeros((capacity, obs_dim), np.float32),
-            "action": np.zeros((capacity, act_dim), np.float32),
-            "reward": np.zeros(capacity, np.float32),
-            "discount": np.zeros(capacity, np.float32),
-            "next_obs": np.zeros((capacity, obs_dim), np.float32),
+        self.backend = b = backend or Backend()
+        self.storage: dict[str, Any] = {
+            "obs": b.zeros((capacity, obs_dim), "float32"),
+            "action": b.zeros((capacity, act_dim), "float32"),
+            "reward": b.zeros((capacity,), "float32"),
+            "discount": b.zeros((capacity,), "float32"),
+            "next_obs": b.zeros((capacity, obs_dim), "float32"),
         }
-        self.sum_tree, self.min_tree = SumTree(capacity), MinTree(capacity)
-        self.max_priority = 1.0
+        self.sum_tree, self.min_tree = SumTree(capacity, b), MinTree(capacity, b)
+        self._max_priority = b.asarray(1.0, "float64")
+        """Where the priorities live: on a device, reading it would wait for the device."""
         self.cursor = 0  # next slot to write; the oldest transition once full
         self.size = 0
         self.total_added = 0
@@ -105,6 +170,10 @@ class PrioritizedReplay:
 
     def __len__(self) -> int:
         return self.size
+
+    @property
+    def max_priority(self) -> float:
+        return float(self._max_priority)
 
     def add(self, batch: dict[str, np.ndarray], priorities: np.ndarray | None = None) -> np.ndarray:
         """Insert a batch (keys :data:`FIELDS`), overwriting the oldest slots once full.
@@ -117,12 +186,13 @@ class PrioritizedReplay:
             batch = {k: np.asarray(v)[-self.capacity :] for k, v in batch.items()}
             priorities = None if priorities is None else np.asarray(priorities)[-self.capacity :]
             count = self.capacity
-        idx = (self.cursor + np.arange(count)) % self.capacity
+        b = self.backend
+        idx = b.asarray((self.cursor + np.arange(count)) % self.capacity)
         for key in FIELDS:
-            self.storage[key][idx] = batch[key]
+            self.storage[key][idx] = b.asarray(batch[key], "float32")
         if priorities is None:
-            priorities = np.full(count, self.max_priority)
-        self._set_priorities(idx, np.asarray(priorities, dtype=np.float64))
+            priorities = b.full(count, self._max_priority)
+        self._set_priorities(idx, b.asarray(priorities, "float64"))
         self.cursor = int((self.cursor + count) % self.capacity)
         self.size = min(self.size + count, self.capacity)
         self.total_added += count
@@ -138,48 +208,53 @@ class PrioritizedReplay:
         """
         if self.size == 0:
             raise ConfigError("cannot sample from an empty replay")
-        total = self.sum_tree.root
-        # One uniform draw per equal-mass stratum lowers variance versus i.i.d. draws.
-        mass = (np.arange(batch_size) + self.rng.random(batch_size)) * (total / batch_size)
-        idx = self.sum_tree.find_prefix(np.minimum(mass, np.nextafter(total, 0)))
+        b = self.backend
+        total = self.sum_tree.root_value
+        # One uniform draw per equal-mass stratum lowers variance versus i.i.d. draws. The
+        # draws are the host generator's on every backend (the same samples for one seed).
+        strata = b.asarray(np.arange(batch_size) + self.rng.random(batch_size))
+        mass = strata * (total / batch_size)
+        below_total = b.op("nextafter")(total, b.asarray(0.0, "float64"))
+        idx = self.sum_tree.find_prefix(b.op("minimum")(mass, below_total))
         # Float round-off can walk into an empty leaf past the filled region; clamp back.
-        idx = np.minimum(idx, self.size - 1)
+        idx = idx.clip(0, self.size - 1)
         probs = self.sum_tree.leaves(idx) / total
-        min_prob = self.min_tree.root / total
+        min_prob = self.min_tree.root_value / total
         weights = (probs / min_prob) ** (-beta)  # == (N P)^-b / (N P_min)^-b
         batch = {key: self.storage[key][idx] for key in FIELDS}
-        return batch, idx, weights.astype(np.float32)
+        return batch, idx, b.asarray(weights, "float32")
 
-    def update_priorities(self, indices: np.ndarray, priorities: np.ndarray) -> None:
+    def update_priorities(self, indices: Any, priorities: Any) -> None:
         """Write back learner-computed priorities (e.g. per-sample loss) for sampled slots."""
-        self._set_priorities(np.asarray(indices), np.asarray(priorities, dtype=np.float64))
+        b = self.backend
+        self._set_priorities(b.asarray(indices, "int64"), b.asarray(priorities, "float64"))
 
-    def _set_priorities(self, idx: np.ndarray, priorities: np.ndarray) -> None:
-        priorities = np.abs(priorities) + self.eps
-        self.max_priority = max(self.max_priority, float(priorities.max()))
+    def _set_priorities(self, idx: Any, priorities: Any) -> None:
+        priorities = abs(priorities) + self.eps
+        self._max_priority = self.backend.op("maximum")(self._max_priority, priorities.max())
         scaled = priorities**self.alpha
         self.sum_tree.update(idx, scaled)
         self.min_tree.update(idx, scaled)
 
     def state_dict(self) -> dict[str, Any]:
         """Everything needed to rebuild this replay exactly (arrays + counters + RNG state)."""
-        filled = slice(0, self.size)
+        filled, host = slice(0, self.size), self.backend.to_numpy
         return {
-            **{key: arr[filled] for key, arr in self.storage.items()},
-            "priorities": self.sum_tree.leaves(np.arange(self.size)),
+            **{key: host(arr[filled]) for key, arr in self.storage.items()},
+            "priorities": host(self.sum_tree.leaves(np.arange(self.size))),
             "counters": np.array([self.cursor, self.size, self.total_added], np.int64),
             "max_priority": np.array(self.max_priority),
             "rng_state": self.rng.bit_generator.state,  # a dict: checkpoint.py stores it as JSON
         }
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
-        size = int(state["counters"][1])
+        size, b = int(state["counters"][1]), self.backend
         for key in FIELDS:
-            self.storage[key][:size] = state[key]
+            self.storage[key][:size] = b.asarray(state[key], "float32")
         idx = np.arange(size)
         # Priorities were saved already raised to alpha; write the leaves directly.
-        self.sum_tree.update(idx, state["priorities"])
-        self.min_tree.update(idx, state["priorities"])
+        self.sum_tree.update(idx, b.asarray(state["priorities"], "float64"))
+        self.min_tree.update(idx, b.asarray(state["priorities"], "float64"))
         self.cursor, self.size, self.total_added = (int(v) for v in state["counters"])
-        self.max_priority = float(state["max_priority"])
+        self._max_priority = b.asarray(float(state["max_priority"]), "float64")
         self.rng.bit_generator.state = state["rng_state"]

@@ -93,13 +93,9 @@ class LearnerService:
         return self.train(self.limiter.take(self.max_steps_per_call))
 
     def train(self, steps: int) -> dict:
-        metrics: dict[str, float] = {}
         start = time.perf_counter()
-        for _ in range(steps):
-            for key, value in self.learner.step().items():
-                metrics[key] = metrics.get(key, 0.0) + value
+        out = self.learner.run(steps)
         self._step_time += time.perf_counter() - start
-        out = {k: v / steps for k, v in metrics.items()} if steps else {}
         out.update(
             learner_steps=float(self.version),
             steps_this_call=float(steps),

@@ -43,7 +43,8 @@ HELP_GROUPS: dict[str, tuple[str, ...]] = {
             "logdir", "log_every_s", "progress"),
     "workers and paths": ("workers", "envs_per_worker", "sim_path", "emulated_workers",
                           "address", "num_cpus", "worker_cpus", "learner_cpus", "server_cpus",
-                          "evaluator_cpus", "learner_gpus", "learner_resource",
+                          "evaluator_cpus", "learner_gpus", "batch_per_worker",
+                          "learner_resource",
                           "worker_resource", "spread_workers", "evaluator_resource",
                           "server_resource"),
     "D4PG (the workers' side; the learner's settings are the config file's d4pg section)": (
@@ -140,7 +141,7 @@ def check_inputs(setup: TrainSetup) -> None:
         preset = resolve_task(cfg.task)
     except ConfigError as exc:  # its message repeats the name whole: a 1 MB one too
         raise ConfigError(str(exc).replace(repr(cfg.task), quote(cfg.task))) from None
-    d4pg = d4pg_for(preset, setup.d4pg)
+    d4pg = d4pg_for(preset, setup.d4pg, cfg)
     root = run_setup.storage_root(cfg)
     if not is_uri(root):
         local = Path(root) / cfg.run_name if cfg.run_name else Path(root)

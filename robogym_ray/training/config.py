@@ -139,7 +139,13 @@ class TrainConfig:
     worker_cpus: float = 0.25
     """Ray CPUs reserved per rollout worker (fractional: they mostly wait on their server)."""
     learner_cpus: float = 0.5
-    """Ray CPUs reserved for the learner."""
+    """Ray CPUs reserved for the learner; its torch threads follow them (rounded down, at
+    least 1) unless the d4pg section sets num_threads."""
+    batch_per_worker: int = 0
+    """When > 0, the learner's batch is this many transitions per rollout worker (simulated
+    and real), samples_per_insert unchanged: a cluster with more workers trains on larger
+    batches, and its learner takes fewer, larger steps per env step (docs/scaling.md). 0: the
+    d4pg section's batch_size."""
     server_cpus: float = 0.2
     """Ray CPUs reserved per supervised robot server (--sim-path grpc: one per simulated env,
     one for the evaluator)."""
@@ -215,6 +221,7 @@ class TrainConfig:
             (self.worker_cpus > 0 and self.learner_cpus > 0, "worker_cpus/learner_cpus", "> 0"),
             (self.server_cpus > 0, "server_cpus", "> 0"),
             (self.evaluator_cpus > 0, "evaluator_cpus", "> 0"),
+            (self.batch_per_worker >= 0, "batch_per_worker", ">= 0"),
             (self.num_cpus is None or self.num_cpus > 0, "num_cpus", "> 0 or null"),
             (self.max_wall_s is None or self.max_wall_s > 0, "max_wall_s", "> 0 or null"),
             (self.checkpoint_every >= 0, "checkpoint_every", ">= 0 (0 = never)"),

@@ -78,6 +78,8 @@ def finish(
         learner_restored_from_step=learner_status["restored_from_step"],
         learner_restored_replay=learner_status["restored_replay"],
         learner_node=learner_status.get("node", ""),
+        learner_threads=learner_status.get("threads", 0),
+        learner_device=learner_status.get("device", ""),
         # Sent but not in the replay: lost with a learner that Ray restarted (what came after
         # its last replay snapshot, and the batch in flight).
         lost_transitions=run_stats.transitions_sent

@@ -112,7 +112,17 @@ def resolve_task(task: str) -> TaskPreset:
     )
 
 
-def d4pg_for(preset: TaskPreset, overrides: Mapping[str, Any] | None = None) -> D4PGConfig:
-    """D4PGConfig = defaults <- task preset <- user overrides (config file)."""
+def d4pg_for(
+    preset: TaskPreset, overrides: Mapping[str, Any] | None = None, train: Any = None
+) -> D4PGConfig:
+    """D4PGConfig = defaults <- task preset <- user overrides (config file) <- the batch that
+    ``train.batch_per_worker`` (a TrainConfig) asks for."""
     base = merge_config(D4PGConfig, preset.d4pg, f"preset {preset.env_id}")
-    return merge_config(D4PGConfig, overrides or {}, "d4pg settings", base=base)
+    d4pg = merge_config(D4PGConfig, overrides or {}, "d4pg settings", base=base)
+    per_worker = getattr(train, "batch_per_worker", 0)
+    if per_worker:
+        workers = train.workers + len(train.real_robot)
+        d4pg = merge_config(
+            D4PGConfig, {"batch_size": per_worker * workers}, "--batch-per-worker", base=d4pg
+        )
+    return d4pg

@@ -115,7 +115,8 @@ class Program:
         # A continued run starts at the checkpoint's step count; rates count this run's steps.
         status = ray.get(self.learner.status.remote())
         self.first_learner_step, self.first_total_added = status["version"], status["total_added"]
-        log.info("learner on %s", status["node"])
+        log.info("learner on %s: %s, %d torch threads", status["node"], status["device"],
+                 status["threads"])  # fmt: skip
         self.workers = self._start_workers()
         if cfg.evaluator:
             kwargs = self._env_kwargs(None) | evaluator_env_kwargs(cfg, env_id)

@@ -39,7 +39,7 @@ def run_training(
     ``EmulationConfig()``, the emulated robot ``robogym-ray serve --emulate-hardware`` serves).
     """
     preset = resolve_task(cfg.task)
-    d4pg = d4pg_for(preset, d4pg_overrides)
+    d4pg = d4pg_for(preset, d4pg_overrides, cfg)
     if cfg.emulated_workers and not preset.env_id.startswith("RoboGymRay/"):
         raise ConfigError(f"--emulated-workers needs a robot task; {preset.env_id} has none")
     cfg = replace(cfg, run_name=setup.run_name(cfg, preset.env_id))

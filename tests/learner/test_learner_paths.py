@@ -1,0 +1,157 @@
+"""The learner's one code path for every device (issue 42): ``run`` equals the step the learner
+took before it (written out below), a replay on the learner's device samples exactly what the
+host replay does, block sampling, bf16 and torch.compile run on the CPU the tests have."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+from torch import nn
+
+from robogym_ray.errors import ConfigError
+from robogym_ray.learner.distributional import (
+    categorical_cross_entropy,
+    categorical_projection,
+    expected_value,
+)
+from robogym_ray.learner.learner import D4PGLearner
+from tests.learner.test_learner import ACT, OBS, _config, _data
+
+
+def _filled(**kw: object) -> D4PGLearner:
+    learner = D4PGLearner(_config(**kw), OBS, ACT, seed=7)
+    for i in range(3):
+        learner.add(_data(100, seed=i))
+    return learner
+
+
+def reference_step(learner: D4PGLearner) -> None:
+    """The learner's step as it was before ``run`` (commit e80ebaf), written out: per step one
+    prioritized sample, the critic's and the policy's update, priorities to the host, targets."""
+    c = learner.config
+    beta = learner.beta
+    learner._apply_lr()
+    batch, idx, weights = learner.replay.sample(c.batch_size, beta)
+    b = {k: torch.as_tensor(v) for k, v in batch.items()}
+    w = torch.as_tensor(weights)
+    with torch.no_grad():
+        nxt = learner.target_critic(b["next_obs"], learner.target_policy(b["next_obs"]))
+        target = categorical_projection(
+            torch.softmax(nxt, -1), b["reward"], b["discount"], learner.support
+        )
+    per_sample = categorical_cross_entropy(learner.critic(b["obs"], b["action"]), target)
+    learner.critic_opt.zero_grad(set_to_none=True)
+    (w * per_sample).mean().backward()
+    nn.utils.clip_grad_norm_(learner.critic.parameters(), c.max_grad_norm, foreach=True)
+    learner.critic_opt.step()
+    q = expected_value(learner.critic(b["obs"], learner.policy(b["obs"])), learner.support)
+    params = list(learner.policy.parameters())
+    for p, g in zip(params, torch.autograd.grad(-q.mean(), params), strict=True):
+        p.grad = g
+    nn.utils.clip_grad_norm_(params, c.max_grad_norm, foreach=True)
+    learner.policy_opt.step()
+    learner.replay.update_priorities(idx, per_sample.detach().numpy())
+    learner.num_steps += 1
+    learner._update_targets()
+
+
+def _params(learner: D4PGLearner) -> list[torch.Tensor]:
+    nets = (learner.policy, learner.critic, learner.target_policy, learner.target_critic)
+    return [p.detach().clone() for net in nets for p in net.parameters()]
+
+
+def _assert_same(a: D4PGLearner, b: D4PGLearner, atol: float = 0.0) -> None:
+    for x, y in zip(_params(a), _params(b), strict=True):
+        torch.testing.assert_close(x, y, atol=atol, rtol=0 if atol == 0 else 1e-4)
+    leaves = np.arange(len(a.replay))
+    np.testing.assert_allclose(
+        a.replay.backend.to_numpy(a.replay.sum_tree.leaves(leaves)),
+        b.replay.backend.to_numpy(b.replay.sum_tree.leaves(leaves)),
+        rtol=1e-5 if atol else 0,
+    )
+
+
+def test_run_takes_exactly_the_step_the_learner_took_before() -> None:
+    """Same seed, inserts, batch and priorities: the networks, targets and priorities after 7
+    steps of ``run`` (in calls of 3, 1 and 3) equal the reference step's, bit for bit."""
+    new, old = _filled(), _filled()
+    for steps in (3, 1, 3):  # target copies every 3 steps: calls cross a copy
+        metrics = new.run(steps)
+        for _ in range(steps):
+            reference_step(old)
+    assert metrics["steps"] == 7 == old.num_steps
+    _assert_same(new, old)
+
+
+def test_a_replay_on_the_learners_device_samples_what_the_host_replay_does() -> None:
+    host, device = _filled(replay_device="host"), _filled(replay_device="learner")
+    assert host.replay.backend.on_host and not device.replay.backend.on_host
+    assert isinstance(device.replay.storage["obs"], torch.Tensor)
+    for _ in range(3):
+        metrics = [host.run(4), device.run(4)]
+        new = _data(30, seed=9)
+        host.add(new)
+        device.add(new)
+    assert metrics[0] == metrics[1]
+    _assert_same(host, device)
+    assert host.replay.max_priority == device.replay.max_priority
+    # Its state is the host replay's, so checkpoints move between the two.
+    a, b = host.replay.state_dict(), device.replay.state_dict()
+    for key in ("obs", "action", "reward", "discount", "next_obs", "priorities", "counters"):
+        np.testing.assert_array_equal(a[key], b[key])
+    host.replay.load_state_dict(b)
+    assert host.run(2) == device.run(2)
+
+
+def test_blocks_of_batches_sampled_at_once() -> None:
+    """``sgd_steps_per_sample`` 4: one sample of 4 batches per 4 steps, each batch a strided
+    quarter (so it spans every stratum), each batch's priorities written after its step."""
+    learner = _filled(sgd_steps_per_sample=4)
+    sampled, written = [], []
+    sample, update = learner.replay.sample, learner.replay.update_priorities
+
+    def record_sample(n: int, beta: float):  # noqa: ANN202
+        out = sample(n, beta)
+        sampled.append(out[1])
+        return out
+
+    def record_update(idx: np.ndarray, priorities: np.ndarray) -> None:
+        written.append(np.asarray(idx))
+        update(idx, priorities)
+
+    learner.replay.sample, learner.replay.update_priorities = record_sample, record_update
+    metrics = learner.run(10)  # 4 + 4 + a block of 2
+    b = learner.config.batch_size
+    assert [len(s) for s in sampled] == [4 * b, 4 * b, 2 * b] and metrics["steps"] == 10
+    assert len(written) == 10
+    for j in range(4):
+        np.testing.assert_array_equal(written[j], sampled[0][j::4])
+    # The strata are ordered, so a strided quarter reaches across the whole tree.
+    assert written[0].max() - written[0].min() > 0.8 * len(learner.replay)
+
+
+def test_bf16_autocast_learns_like_float32() -> None:
+    fp32, bf16 = _filled(), _filled(bf16=True)
+    a, b = fp32.run(6), bf16.run(6)
+    assert all(np.isfinite(v) for v in b.values())
+    assert b["critic_loss"] == pytest.approx(a["critic_loss"], rel=0.05)
+    assert all(p.dtype == torch.float32 for p in bf16.critic.parameters())
+
+
+def test_compiled_losses_give_the_eager_updates() -> None:
+    eager, compiled = _filled(), _filled(compile="default")
+    for _ in range(2):
+        a, b = eager.run(2), compiled.run(2)
+    assert b["critic_loss"] == pytest.approx(a["critic_loss"], rel=1e-4)
+    _assert_same(eager, compiled, atol=1e-5)
+
+
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [("replay_device", "gpu"), ("sgd_steps_per_sample", 0), ("compile", "fast"),
+     ("num_threads", -1)],
+)  # fmt: skip
+def test_bad_settings_are_refused_by_name(field: str, value: object) -> None:
+    with pytest.raises(ConfigError, match=f"D4PGConfig.{field}="):
+        _config(**{field: value})
