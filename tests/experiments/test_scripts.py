@@ -9,6 +9,7 @@ from types import ModuleType
 
 import pytest
 
+from robogym_ray.errors import ConfigError
 from robogym_ray.reproduce import build_parser, experiment_configs
 from tests.experiments.conftest import POSITIONING, save_learner
 
@@ -195,3 +196,23 @@ def test_curves_figure_marks_each_runs_first_snapshot_at_90_and_95(tmp_path: Pat
     assert first == {"D4PG seed 0": {"90%": 10.0, "95%": 15.0},
                      "D4PG seed 1": {"90%": 15.0, "95%": None},
                      "TD3": {"90%": 5.0, "95%": 5.0}}  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("name", "workers", "batch"),
+    [("scale-laptop", 2, 256), ("scale-16core-gpu", 14, 1792), ("scale-64core-gpu", 60, 7680)],
+)
+def test_scale_presets_grow_the_batch_with_the_workers(name: str, workers: int, batch: int) -> None:
+    """128 transitions per worker at the recipe's samples-per-insert: the learner steps a
+    worker needs per second stay the same however many workers (docs/scaling.md)."""
+    from robogym_ray.training.presets import d4pg_for, resolve_task
+
+    train, d4pg, _ = load_config(name)
+    nav, nav_d4pg, _ = load_config("navigation-average")
+    resolved = d4pg_for(resolve_task(train.task), d4pg, train)
+    assert (train.workers, resolved.batch_size) == (workers, batch)
+    assert resolved.samples_per_insert == nav_d4pg["samples_per_insert"] == 32
+    assert d4pg_for(resolve_task(nav.task), nav_d4pg, nav).batch_size == 256
+    assert (resolved.compile == "reduce-overhead") == ("gpu" in name)
+    with pytest.raises(ConfigError, match="replay_capacity"):  # a batch larger than the replay
+        d4pg_for(resolve_task(train.task), {**d4pg, "replay_capacity": batch - 1}, train)
