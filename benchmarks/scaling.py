@@ -41,14 +41,16 @@ BYTES_PER_TRANSITION = 4 * (20 + 2 + 1 + 1 + 20)
 
 
 def train_run(task: str, workers: int, envs: int, args: argparse.Namespace, run: str) -> dict:
-    d4pg = {"samples_per_insert": args.samples_per_insert, "batch_size": args.batch}
+    d4pg = {"samples_per_insert": args.samples_per_insert, "batch_size": args.batch,
+            **json.loads(args.d4pg)}  # fmt: skip
     with tempfile.TemporaryDirectory(prefix="scaling-") as logdir:
         config = Path(logdir) / "config.json"
         config.write_text(json.dumps({"extends": str(CONFIG), "d4pg": d4pg}))
         cmd = ["robogym-ray", "train", "--config", str(config), "--task", TASKS[task],
                "--workers", str(workers), "--envs-per-worker", str(envs),
                "--total-steps", "1000000000", "--max-wall-s", str(args.wall_s),
-               "--logdir", logdir, "--run-name", run, "--no-progress", "--num-cpus", "2",
+               "--logdir", logdir, "--run-name", run, "--no-progress",
+               "--num-cpus", str(args.num_cpus), "--learner-gpus", str(args.learner_gpus),
                "--no-evaluator", "--learner-cpus", str(args.learner_cpus),
                "--policy-snapshot-every-s", "0", "--checkpoint-every", "0"]  # fmt: skip
         load = os.getloadavg()[0]
@@ -61,7 +63,8 @@ def train_run(task: str, workers: int, envs: int, args: argparse.Namespace, run:
     return {
         "task": task, "workers": workers, "envs": envs, "batch": args.batch,
         "samples_per_insert": args.samples_per_insert, "learner_cpus": args.learner_cpus,
-        "learner_threads": s.get("learner_threads"),
+        "learner_threads": s.get("learner_threads"), "learner_device": s.get("learner_device"),
+        "d4pg": args.d4pg,
         "env_steps_per_s": round(env_rate, 1),
         "learner_steps_per_s": round(s["throughput/learner_steps_per_s"], 2),
         "collect_calls_per_s": round(env_rate / 50, 2),  # steps_per_call 50 (the recipe's)
@@ -179,6 +182,9 @@ def main() -> None:
     t.add_argument("--learner-cpus", type=float, default=0.5)
     t.add_argument("--wall-s", type=float, default=60.0)
     t.add_argument("--repeats", type=int, default=3)
+    t.add_argument("--num-cpus", type=float, default=2.0, help="the embedded Ray's CPUs")
+    t.add_argument("--learner-gpus", type=float, default=-1.0, help="0: a CPU learner")
+    t.add_argument("--d4pg", default="{}", help="JSON: more d4pg settings, e.g. compile")
     b = sub.add_parser("broadcast")
     b.add_argument("--workers", type=int, nargs="+", default=[1, 2, 4, 8])
     b.add_argument("--rounds", type=int, default=20)

@@ -41,6 +41,7 @@ def load_config(name: str):
         "positioning-average",
         "navigation-average-decay",
         "navigation-average-256",
+        "navigation-average-1024",
         "navigation-average-256-quiet",
         "navigation-average-revisit",
         "navigation-sectors-average",
