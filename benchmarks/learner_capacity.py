@@ -30,7 +30,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-import numpy as np
+from learner_throughput import random_batch  # benchmarks/ is this script's folder
 
 OBS, ACT, FILL = 20, 2, 100_000
 
@@ -43,17 +43,6 @@ def nav_config(batch: int, **kw: Any) -> Any:
         v_min=-300.0, v_max=450.0, batch_size=batch, replay_capacity=FILL,
         min_replay_size=1000, **kw,
     )  # fmt: skip
-
-
-def random_batch(n: int, seed: int = 0) -> dict[str, np.ndarray]:
-    rng = np.random.default_rng(seed)
-    return {
-        "obs": rng.standard_normal((n, OBS), dtype=np.float32),
-        "action": rng.uniform(-1, 1, (n, ACT)).astype(np.float32),
-        "reward": rng.uniform(-2, 2, n).astype(np.float32),
-        "discount": np.full(n, 0.99**5, np.float32),
-        "next_obs": rng.standard_normal((n, OBS), dtype=np.float32),
-    }
 
 
 def run_steps(learner: Any, steps: int) -> None:
@@ -78,7 +67,7 @@ def alone(batch: int, threads: int, seconds: float, args: argparse.Namespace) ->
             extra[field] = value
     torch.set_num_threads(threads)
     learner = D4PGLearner(nav_config(batch, device=args.device, **extra), OBS, ACT, seed=0)
-    learner.add(random_batch(FILL))
+    learner.add(random_batch(FILL, OBS, ACT))
     start = time.perf_counter()
     run_steps(learner, args.warmup)
     warmup_s = time.perf_counter() - start
@@ -108,7 +97,7 @@ def on_ray(batch: int, cpus: list[float], rounds: int, steps: int) -> list[dict]
     start_local_ray(max(cpus), _temp_dir=temp, logging_level="ERROR", log_to_driver=False)
     # A tiny samples_per_insert: the fill earns no steps; train(steps) is timed on its own.
     d4pg = nav_config(batch, device="cpu", samples_per_insert=1e-3)
-    data = ray.put(random_batch(FILL))
+    data = ray.put(random_batch(FILL, OBS, ACT))
     out = []
     try:
         for r in range(rounds):
