@@ -12,6 +12,8 @@
     RAY_AUTH_MODE=disabled python benchmarks/scaling.py broadcast --workers 1 2 4 8
         the navigation policy's weights (one object-store put) to N rollout actors: seconds from
         the put to the last worker's answer, median of --rounds.
+    python benchmarks/scaling.py worker --task free navigation --envs 1 4 8
+        a rollout worker's CPU per env step in this process (the cost model's env side);
     python benchmarks/scaling.py replay --capacities 1000000 10000000
         the prioritized replay's insert (a 200-transition batch, one collect call's) and sample
         (batch 256 and 1,024) costs when full.
@@ -134,6 +136,30 @@ def broadcast(args: argparse.Namespace) -> None:
         ray.shutdown()
 
 
+def worker(args: argparse.Namespace) -> None:
+    """A rollout worker's CPU per env step (``collect`` in this process, one torch thread,
+    the recipe's policy; no Ray): the model's ``env_cpu_s``."""
+    import torch
+
+    from robogym_ray.experience.rollout import RolloutWorker, make_gym_env
+    from robogym_ray.learner.config import D4PGConfig
+
+    torch.set_num_threads(1)
+    d4pg = D4PGConfig(policy_hidden=(400, 300), critic_hidden=(400, 300), layer_norm=True)
+    for task in args.task:
+        for envs in args.envs:
+            w = RolloutWorker(make_gym_env(TASKS[task]), d4pg, seed=0, num_envs=envs)
+            w.collect(200)  # warm-up: resets, first forward passes
+            best = float("inf")
+            for _ in range(args.rounds):
+                start = time.process_time()
+                w.collect(args.steps)
+                best = min(best, (time.process_time() - start) / args.steps)
+            w.close()
+            row = {"worker_task": task, "envs": envs, "cpu_ms_per_env_step": round(best * 1e3, 4)}
+            print(json.dumps(row), flush=True)
+
+
 def replay(args: argparse.Namespace) -> None:
     from robogym_ray.learner.replay import PrioritizedReplay
 
@@ -188,10 +214,16 @@ def main() -> None:
     b = sub.add_parser("broadcast")
     b.add_argument("--workers", type=int, nargs="+", default=[1, 2, 4, 8])
     b.add_argument("--rounds", type=int, default=20)
+    w = sub.add_parser("worker")
+    w.add_argument("--task", nargs="+", choices=list(TASKS), default=["free", "navigation"])
+    w.add_argument("--envs", type=int, nargs="+", default=[1, 4, 8])
+    w.add_argument("--steps", type=int, default=2000)
+    w.add_argument("--rounds", type=int, default=3)
     r = sub.add_parser("replay")
     r.add_argument("--capacities", type=int, nargs="+", default=[1_000_000, 10_000_000])
     args = parser.parse_args()
-    {"train": train, "broadcast": broadcast, "replay": replay}[args.mode](args)
+    modes = {"train": train, "broadcast": broadcast, "worker": worker, "replay": replay}
+    modes[args.mode](args)
 
 
 if __name__ == "__main__":

@@ -1,0 +1,121 @@
+"""docs/scaling.md's cost model: env and learner steps/s of a configuration, from measured costs.
+
+    python benchmarks/scaling_model.py check MEASURED.jsonl [...]   the model against each run
+        that benchmarks/scaling.py train printed (medians of the repeats), and the error;
+    python benchmarks/scaling_model.py predict --cores 16 --workers 14 --batch 1792 [--gpu]
+        a configuration this machine cannot run.
+
+The model (docs/scaling.md explains each term). With ``lam = samples_per_insert / batch``
+learner steps per env step, env steps/s is the smallest of
+
+* the cores: ``cores / (env_cpu + other_cpu + lam * learner_cpu)``, where ``learner_cpu`` is
+  the CPU-seconds of one learner step (its time x its threads; 0 on a GPU);
+* the learner, one step at a time: ``1 / (lam * learner_s)``;
+* the workers, one process each: ``workers / env_cpu``;
+* the data path: ``data_path`` env steps/s (the free env's ceiling).
+
+and learner steps/s is ``lam`` times it. Costs are this machine's, measured (COSTS).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+from collections import defaultdict
+from pathlib import Path
+
+COSTS_FILE = Path(__file__).with_name("scaling_costs.json")
+"""The measured costs the model reads (written by hand from the benchmarks' figures)."""
+
+
+def load_costs(path: Path = COSTS_FILE) -> dict:
+    return json.loads(path.read_text())
+
+
+def learner_seconds(costs: dict, batch: int, threads: int, gpu: bool) -> float:
+    """One learner step's time: measured batches interpolated linearly in the batch."""
+    table = costs["learner_gpu_s" if gpu else f"learner_cpu_s_{threads}t"]
+    points = sorted((int(b), t) for b, t in table.items())
+    for (b0, t0), (b1, t1) in zip(points, points[1:], strict=False):
+        if batch <= b1:
+            return t0 + (t1 - t0) * (batch - b0) / (b1 - b0)
+    (b0, t0), (b1, t1) = points[-2], points[-1]
+    return t1 + (t1 - t0) * (batch - b1) / (b1 - b0)  # beyond the last: the last slope
+
+
+def predict(
+    costs: dict, *, task: str, cores: float, workers: int, envs: int, batch: int,
+    samples_per_insert: float, threads: int = 1, gpu: bool = False,
+) -> dict:  # fmt: skip
+    env_cpu = costs["env_cpu_s"][task][str(envs)]
+    other = costs["other_cpu_s"]
+    lam = samples_per_insert / batch
+    step_s = learner_seconds(costs, batch, threads, gpu)
+    learner_cpu = 0.0 if gpu else step_s * threads
+    limits = {
+        "cores": cores / (env_cpu + other + lam * learner_cpu),
+        "learner": float("inf") if lam == 0 else 1.0 / (lam * step_s),
+        "workers": workers / env_cpu,
+        "data path": costs["data_path_env_steps_per_s"],
+    }
+    bound = min(limits, key=limits.get)
+    env_rate = limits[bound]
+    return {"env_steps_per_s": env_rate, "learner_steps_per_s": lam * env_rate, "bound": bound}
+
+
+def check(paths: list[Path], costs: dict) -> list[dict]:
+    runs: dict[tuple, list[dict]] = defaultdict(list)
+    for path in paths:
+        for line in path.read_text().splitlines():
+            row = json.loads(line)
+            if "env_steps_per_s" not in row:
+                continue
+            key = (row["task"], row["workers"], row["envs"], row["batch"],
+                   row["samples_per_insert"], row.get("learner_threads") or 1)  # fmt: skip
+            runs[key].append(row)
+    out = []
+    for (task, workers, envs, batch, spi, threads), rows in sorted(runs.items()):
+        measured = statistics.median(r["env_steps_per_s"] for r in rows)
+        model = predict(costs, task=task, cores=costs["cores"], workers=workers, envs=envs,
+                        batch=batch, samples_per_insert=spi, threads=threads)  # fmt: skip
+        out.append({
+            "task": task, "workers": workers, "envs": envs, "batch": batch, "spi": spi,
+            "threads": threads, "runs": len(rows), "measured_median": round(measured, 1),
+            "measured_min": min(r["env_steps_per_s"] for r in rows),
+            "measured_max": max(r["env_steps_per_s"] for r in rows),
+            "model": round(model["env_steps_per_s"], 1), "bound": model["bound"],
+            "error": round(model["env_steps_per_s"] / measured - 1, 3),
+        })  # fmt: skip
+    return out
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="mode", required=True)
+    c = sub.add_parser("check")
+    c.add_argument("measured", type=Path, nargs="+")
+    p = sub.add_parser("predict")
+    p.add_argument("--task", default="navigation")
+    p.add_argument("--cores", type=float, required=True)
+    p.add_argument("--workers", type=int, required=True)
+    p.add_argument("--envs", type=int, default=4)
+    p.add_argument("--batch", type=int, default=256)
+    p.add_argument("--samples-per-insert", type=float, default=32.0)
+    p.add_argument("--threads", type=int, default=1)
+    p.add_argument("--gpu", action="store_true")
+    args = parser.parse_args()
+    costs = load_costs()
+    if args.mode == "check":
+        rows = check(args.measured, costs)
+        for row in rows:
+            print(json.dumps(row))
+        worst = max(abs(r["error"]) for r in rows)
+        print(json.dumps({"configurations": len(rows), "worst_error": worst}))
+    else:
+        kw = {k: v for k, v in vars(args).items() if k != "mode"}
+        print(json.dumps(predict(costs, **kw)))
+
+
+if __name__ == "__main__":
+    main()
