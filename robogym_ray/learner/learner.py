@@ -226,6 +226,9 @@ class D4PGLearner:
     ) -> tuple[torch.Tensor, torch.Tensor]:
         """One gradient step of each network; (stats on the device, per-sample losses)."""
         critic_loss, per_sample = self._critic_loss_fn(b, w)
+        # Outputs of a CUDA-graph replay are overwritten by the next replay: what outlives this
+        # step is copied out now (a no-op for the values on every other path).
+        critic_value, per_sample = critic_loss.detach().clone(), per_sample.clone()
         self.critic_opt.zero_grad(set_to_none=True)
         critic_loss.backward()
         critic_norm = self._clip(self.critic)
@@ -239,7 +242,7 @@ class D4PGLearner:
             p.grad = g
         policy_norm = self._clip(self.policy)
         self.policy_opt.step()
-        losses = (critic_loss.detach(), policy_loss.detach(), critic_norm, policy_norm)
+        losses = (critic_value, policy_loss.detach(), critic_norm, policy_norm)
         stats = torch.stack([*(x.float() for x in losses), per_sample.mean()])
         return stats, per_sample
 

@@ -62,6 +62,14 @@ class Backend:
         out = t.as_tensor(value, device=self.device)
         return out.to(getattr(t, dtype)) if dtype is not None else out
 
+    def upload(self, array: np.ndarray) -> Any:
+        """A host array here. To a GPU through pinned memory without waiting: a plain copy from
+        pageable memory would first wait for every kernel queued before it."""
+        if self.on_host or self.device.type != "cuda":
+            return self.asarray(array)
+        host = self.torch.from_numpy(np.ascontiguousarray(array)).pin_memory()
+        return host.to(self.device, non_blocking=True)
+
     def to_numpy(self, value: Any) -> np.ndarray:
         return value if self.on_host else value.detach().cpu().numpy()
 
@@ -187,9 +195,9 @@ class PrioritizedReplay:
             priorities = None if priorities is None else np.asarray(priorities)[-self.capacity :]
             count = self.capacity
         b = self.backend
-        idx = b.asarray((self.cursor + np.arange(count)) % self.capacity)
+        idx = b.upload((self.cursor + np.arange(count)) % self.capacity)
         for key in FIELDS:
-            self.storage[key][idx] = b.asarray(batch[key], "float32")
+            self.storage[key][idx] = b.upload(np.asarray(batch[key], np.float32))
         if priorities is None:
             priorities = b.full(count, self._max_priority)
         self._set_priorities(idx, b.asarray(priorities, "float64"))
@@ -212,7 +220,7 @@ class PrioritizedReplay:
         total = self.sum_tree.root_value
         # One uniform draw per equal-mass stratum lowers variance versus i.i.d. draws. The
         # draws are the host generator's on every backend (the same samples for one seed).
-        strata = b.asarray(np.arange(batch_size) + self.rng.random(batch_size))
+        strata = b.upload(np.arange(batch_size) + self.rng.random(batch_size))
         mass = strata * (total / batch_size)
         below_total = b.op("nextafter")(total, b.asarray(0.0, "float64"))
         idx = self.sum_tree.find_prefix(b.op("minimum")(mass, below_total))
