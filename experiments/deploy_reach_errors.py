@@ -7,6 +7,9 @@ median and 90th percentile over all windows of N episodes (episode i resets with
         runs/deploy/isaac-deploy-reach-ur10e/checkpoints/learner.pt --out results/deploy-reach-d4pg
     # the baseline: uniformly random actions over the env's action space
     python experiments/deploy_reach_errors.py --random --out results/deploy-reach-random
+    # and the arm holding still (action 0), what a policy that learned only to spare its
+    # action penalty scores
+    python experiments/deploy_reach_errors.py --hold --out results/deploy-reach-hold
     # an Isaac Lab export, checked against its IO descriptors first
     python experiments/deploy_reach_errors.py policy.pt --isaac-lab \\
         --io-descriptors IO_descriptors.yaml
@@ -71,6 +74,8 @@ def load(args: argparse.Namespace, env: Any) -> tuple[Callable[[np.ndarray], np.
     if args.random:
         rng = np.random.default_rng(args.seed)
         return (lambda obs: rng.uniform(-1.0, 1.0, env.action_space.shape)), "random"
+    if args.hold:  # action 0 (the bounds are symmetric): every target the measured joints
+        return (lambda obs: np.zeros(env.action_space.shape)), "hold"
     if args.isaac_lab:
         from robogym_ray.isaac_lab import IsaacLabPolicy
 
@@ -123,6 +128,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("policy", nargs="?", help="learner.pt, exported policy, or Isaac Lab's.")
     parser.add_argument("--random", action="store_true", help="Uniformly random actions.")
+    parser.add_argument("--hold", action="store_true", help="Action 0: the arm holds still.")
     parser.add_argument("--isaac-lab", action="store_true", help="POLICY is an Isaac Lab export.")
     parser.add_argument("--io-descriptors", default=None, help="Its IO_descriptors.yaml.")
     parser.add_argument("--env-id", default=ENV_ID, help="The task (default: %(default)s).")
@@ -131,8 +137,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--max-steps", type=int, default=None, help="Step limit (default 720).")
     parser.add_argument("--out", default=None, help="Folder for errors.json.")
     args = parser.parse_args(argv)
-    if args.random == (args.policy is not None):
-        parser.error("give one of POLICY or --random")
+    if args.random + args.hold + (args.policy is not None) != 1:
+        parser.error("give one of POLICY, --random or --hold")
     kwargs = {} if args.max_steps is None else {"max_steps": args.max_steps}
     env = gym.make(args.env_id, **kwargs)
     try:

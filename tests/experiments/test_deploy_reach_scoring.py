@@ -32,9 +32,9 @@ def test_median_and_90th_percentile_over_all_windows() -> None:
     assert summary["rotation_error_rad"] == {"median": 3.0, "p90": pytest.approx(4.6)}
 
 
-@pytest.mark.parametrize("who", ["random", "checkpoint"])
+@pytest.mark.parametrize("who", ["random", "hold", "checkpoint"])
 def test_the_script_scores_each_window(who: str, tmp_path: Path, capsys) -> None:
-    policy = ["--random"]
+    policy = [f"--{who}"]
     if who == "checkpoint":
         save_learner(tmp_path / "learner.pt", 19, 6)
         policy = [str(tmp_path / "learner.pt")]
