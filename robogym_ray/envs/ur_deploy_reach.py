@@ -31,7 +31,7 @@ from robogym_ray.errors import ConfigError
 from robogym_ray.protocol import robot_server_pb2 as pb
 from robogym_ray.protocol.client import RobotServerClient
 from robogym_ray.robots.ur.controller import MIN_DURATION
-from robogym_ray.robots.ur.geometry import JOINT_NAMES
+from robogym_ray.robots.ur.geometry import JOINT_NAMES, UR_MODELS
 
 PI = math.pi
 KEYPOINTS = np.array(
@@ -89,6 +89,14 @@ def step_reward_range(action_high: np.ndarray, rate: float = 60.0) -> tuple[floa
     squares = float(np.sum(np.square(np.asarray(action_high, dtype=np.float64))))
     worst = TRACKING_WEIGHT * MAX_KEYPOINT_ERROR + ACTION_WEIGHT * 5.0 * squares
     return worst / rate, best / rate
+
+
+def return_range(discount: float = 0.99, ur_model: str = "ur10e") -> tuple[float, float]:
+    """The bounds of a discounted return (episodes end only by the time limit, so the horizon is
+    1 / (1 - discount)) with the env's action bounds for ``ur_model``."""
+    worst, best = step_reward_range(action_high(UR_MODELS[ur_model].max_velocity))
+    horizon = 1.0 / (1.0 - discount)
+    return worst * horizon, best * horizon
 
 
 class IsaacDeployReachUR(PoseTask, UR2Arm):

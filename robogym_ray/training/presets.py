@@ -15,10 +15,9 @@ from typing import Any
 import gymnasium as gym
 
 from robogym_ray.config import merge_config
-from robogym_ray.envs.ur_deploy_reach import action_high, step_reward_range
+from robogym_ray.envs.ur_deploy_reach import return_range
 from robogym_ray.errors import ConfigError
 from robogym_ray.learner.config import D4PGConfig
-from robogym_ray.robots.ur.geometry import UR_MODELS
 from robogym_ray.text import did_you_mean
 
 
@@ -52,13 +51,11 @@ _ISAAC_REACH = {**_POSITIONING, "v_min": -20.0, "v_max": 5.0}
 
 
 def _deploy_reach_support(discount: float = 0.99) -> dict[str, float]:
-    """``[v_min, v_max]`` from the reward's range per step over the env's action bounds, times
-    the horizon 1 / (1 - discount), rounded outwards to whole units (the rule of
-    ``learner.config``): about [-138, 4] for the UR10e, atoms 2.8 apart."""
-    high = action_high(UR_MODELS["ur10e"].max_velocity)
-    worst, best = step_reward_range(high)
-    horizon = 1.0 / (1.0 - discount)
-    return {"v_min": float(math.floor(worst * horizon)), "v_max": float(math.ceil(best * horizon))}
+    """``[v_min, v_max]``: the discounted return's bounds over the env's action bounds (the rule
+    of ``learner.config``), rounded outwards to whole units: [-138, 4] for the UR10e, atoms 2.8
+    apart."""
+    worst, best = return_range(discount)
+    return {"v_min": float(math.floor(worst)), "v_max": float(math.ceil(best))}
 
 
 _DEPLOY_REACH = {**_POSITIONING, **_deploy_reach_support()}
