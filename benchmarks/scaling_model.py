@@ -11,10 +11,15 @@ learner steps per env step, env steps/s is the smallest of
 * the cores: ``cores / (env_cpu + other_cpu + lam * learner_cpu)``, where ``learner_cpu`` is
   the CPU-seconds of one learner step (its time x its threads; 0 on a GPU);
 * the learner, one step at a time: ``1 / (lam * learner_s)``;
-* the workers, one process each: ``workers / env_cpu``;
-* the data path: ``data_path`` env steps/s (the free env's ceiling).
+* the workers, one process each, waiting on their calls: ``workers / (env_cpu + call_s)``,
+  ``call_s`` from one free-env worker's rate;
+* the data path: the free env's env steps/s, where this machine measured that shape.
 
-and learner steps/s is ``lam`` times it. Costs are this machine's, measured (COSTS).
+and learner steps/s is ``lam`` times it. Where the learner shares its cores with the workers
+(fewer cores than workers + learner threads + 1), a CPU learner step takes
+``1 / learner_share_when_shared`` times its time alone: measured once, on the recipe's run
+(2 workers x 4 envs, batch 256), and checked on the others. Costs are this machine's, measured
+(``scaling_costs.json``).
 """
 
 from __future__ import annotations
@@ -34,7 +39,12 @@ def load_costs(path: Path = COSTS_FILE) -> dict:
 
 
 def learner_seconds(costs: dict, batch: int, threads: int, gpu: bool) -> float:
-    """One learner step's time: measured batches interpolated linearly in the batch."""
+    """One learner step's time: measured batches interpolated linearly in the batch; more CPU
+    threads than measured by Amdahl's law with the parallel share that 1 and 2 threads show."""
+    if not gpu and f"learner_cpu_s_{threads}t" not in costs:
+        one, two = (learner_seconds(costs, batch, h, False) for h in (1, 2))
+        parallel = 2.0 * (1.0 - two / one)  # 1 / speedup(2) = (1 - p) + p / 2
+        return one * ((1.0 - parallel) + parallel / threads)
     table = costs["learner_gpu_s" if gpu else f"learner_cpu_s_{threads}t"]
     points = sorted((int(b), t) for b, t in table.items())
     for (b0, t0), (b1, t1) in zip(points, points[1:], strict=False):
@@ -52,12 +62,21 @@ def predict(
     other = costs["other_cpu_s"]
     lam = samples_per_insert / batch
     step_s = learner_seconds(costs, batch, threads, gpu)
+    if not gpu and cores < workers + threads + 1:
+        # Cores shared with the workers: a learner step in a run took longer than alone.
+        step_s /= costs["learner_share_when_shared"]
     learner_cpu = 0.0 if gpu else step_s * threads
+    # A worker waits on its calls: one free-env worker's rate gives the per-step cost of that
+    # (its call round trips and its share of the driver), beyond its env's CPU.
+    solo = costs["data_path_env_steps_per_s"][f"1x{envs}"]
+    call_s = 1.0 / solo - costs["env_cpu_s"]["free"][str(envs)]
+    learner_host = 1.0 if gpu else 0.0  # a GPU learner's host thread still holds a core
     limits = {
-        "cores": cores / (env_cpu + other + lam * learner_cpu),
+        "cores": (cores - learner_host) / (env_cpu + other + lam * learner_cpu),
         "learner": float("inf") if lam == 0 else 1.0 / (lam * step_s),
-        "workers": workers / env_cpu,
-        "data path": costs["data_path_env_steps_per_s"],
+        "workers": workers / (env_cpu + call_s),
+        # Measured on this machine only (the free env's runs), for the shapes it ran.
+        "data path": costs["data_path_env_steps_per_s"].get(f"{workers}x{envs}", float("inf")),
     }
     bound = min(limits, key=limits.get)
     env_rate = limits[bound]
@@ -79,6 +98,7 @@ def check(paths: list[Path], costs: dict) -> list[dict]:
         measured = statistics.median(r["env_steps_per_s"] for r in rows)
         model = predict(costs, task=task, cores=costs["cores"], workers=workers, envs=envs,
                         batch=batch, samples_per_insert=spi, threads=threads)  # fmt: skip
+        learner = statistics.median(r["learner_steps_per_s"] for r in rows)
         out.append({
             "task": task, "workers": workers, "envs": envs, "batch": batch, "spi": spi,
             "threads": threads, "runs": len(rows), "measured_median": round(measured, 1),
@@ -86,6 +106,10 @@ def check(paths: list[Path], costs: dict) -> list[dict]:
             "measured_max": max(r["env_steps_per_s"] for r in rows),
             "model": round(model["env_steps_per_s"], 1), "bound": model["bound"],
             "error": round(model["env_steps_per_s"] / measured - 1, 3),
+            "learner_measured": round(learner, 2),
+            "learner_model": round(model["learner_steps_per_s"], 2),
+            "learner_error": round(model["learner_steps_per_s"] / learner - 1, 3)
+            if learner > 0 else None,
         })  # fmt: skip
     return out
 
@@ -111,7 +135,9 @@ def main() -> None:
         for row in rows:
             print(json.dumps(row))
         worst = max(abs(r["error"]) for r in rows)
-        print(json.dumps({"configurations": len(rows), "worst_error": worst}))
+        learner = [abs(r["learner_error"]) for r in rows if r["learner_error"] is not None]
+        print(json.dumps({"configurations": len(rows), "worst_env_error": worst,
+                          "worst_learner_error": max(learner, default=None)}))  # fmt: skip
     else:
         kw = {k: v for k, v in vars(args).items() if k != "mode"}
         print(json.dumps(predict(costs, **kw)))
