@@ -5,7 +5,7 @@ indexing, and sampling descends the tree for every sample at once (``log2(capaci
 steps per batch, no Python loop per sample).
 
 One implementation for two homes: NumPy arrays in host memory (the CPU learner's, as always), or
-torch tensors on the learner's device (``Backend.torch``), so a GPU learner samples, gathers and
+torch tensors on the learner's device (``Backend.torch_on``), so a GPU learner samples, gathers and
 writes priorities back without a host round trip. The tree arithmetic is the same float64
 operations in the same order on both, and the uniform draws come from the same host NumPy
 generator, so for one seed and insert order both sample the same indices with the same weights.
@@ -74,7 +74,7 @@ class Backend:
         return value if self.on_host else value.detach().cpu().numpy()
 
     def op(self, name: str) -> Any:
-        """``add`` or ``minimum``, elementwise, of this backend."""
+        """An elementwise function of this backend by its name (``add``, ``minimum``, ...)."""
         return getattr(np if self.on_host else self.torch, name)
 
 
