@@ -82,17 +82,17 @@ def train(args: argparse.Namespace) -> None:
         for i, (task, workers, envs) in enumerate(combos):
             rows.append(train_run(task, workers, envs, args, f"{task}-{workers}x{envs}-{r}-{i}"))
             print(json.dumps(rows[-1]), flush=True)
-    for task, workers, envs in combos:
-        rates = [x["env_steps_per_s"] for x in rows
-                 if (x["task"], x["workers"], x["envs"]) == (task, workers, envs)]  # fmt: skip
-        learner = [x["learner_steps_per_s"] for x in rows
-                   if (x["task"], x["workers"], x["envs"]) == (task, workers, envs)]  # fmt: skip
+    for combo in combos:
+        runs = [x for x in rows if (x["task"], x["workers"], x["envs"]) == combo]
+        rates = [x["env_steps_per_s"] for x in runs]
         print(json.dumps({
-            "summary": f"{task} {workers}x{envs} batch {args.batch} spi "
+            "summary": f"{combo[0]} {combo[1]}x{combo[2]} batch {args.batch} spi "
                        f"{args.samples_per_insert} learner_cpus {args.learner_cpus}",
             "env_steps_per_s_median": statistics.median(rates),
             "env_min": min(rates), "env_max": max(rates),
-            "learner_steps_per_s_median": statistics.median(learner),
+            "learner_steps_per_s_median": statistics.median(
+                x["learner_steps_per_s"] for x in runs
+            ),
         }))  # fmt: skip
 
 

@@ -280,12 +280,11 @@ class _Learner(LearnerService):
         threads and device."""
         import torch
 
-        learner = self.learner
         return {
             **super().status(),
             "node": node_label(),
             "threads": torch.get_num_threads(),
-            "device": str(learner.device),
+            "device": str(self.learner.device),
         }
 
 

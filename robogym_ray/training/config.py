@@ -171,6 +171,11 @@ class TrainConfig:
     progress: bool = True
     """Show a progress bar in the terminal."""
 
+    @property
+    def rollout_workers(self) -> int:
+        """Every rollout worker: the simulated ones and one per real robot."""
+        return self.workers + len(self.real_robot)
+
     def cpu_demand(self) -> float:
         """Ray CPUs the run reserves (the supervisor's own 0.05 included)."""
         servers = 0
@@ -178,7 +183,7 @@ class TrainConfig:
             servers = self.workers * self.envs_per_worker + (1 if self.evaluator else 0)
         return (
             self.learner_cpus
-            + (self.workers + len(self.real_robot)) * self.worker_cpus
+            + self.rollout_workers * self.worker_cpus
             + servers * self.server_cpus
             + (self.evaluator_cpus if self.evaluator else 0.0)
             + 0.05
@@ -187,7 +192,7 @@ class TrainConfig:
     def __post_init__(self) -> None:
         checks = [
             (self.workers >= 0, "workers", ">= 0"),
-            (self.workers + len(self.real_robot) >= 1, "workers", ">= 1 with no real robot"),
+            (self.rollout_workers >= 1, "workers", ">= 1 with no real robot"),
             (
                 0 <= self.emulated_workers <= self.workers,
                 "emulated_workers",

@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import gymnasium as gym
 
@@ -19,6 +19,9 @@ from robogym_ray.envs.ur_deploy_reach import return_range
 from robogym_ray.errors import ConfigError
 from robogym_ray.learner.config import D4PGConfig
 from robogym_ray.text import did_you_mean
+
+if TYPE_CHECKING:
+    from robogym_ray.training.config import TrainConfig
 
 
 @dataclass(frozen=True)
@@ -110,16 +113,15 @@ def resolve_task(task: str) -> TaskPreset:
 
 
 def d4pg_for(
-    preset: TaskPreset, overrides: Mapping[str, Any] | None = None, train: Any = None
+    preset: TaskPreset,
+    overrides: Mapping[str, Any] | None = None,
+    train: TrainConfig | None = None,
 ) -> D4PGConfig:
     """D4PGConfig = defaults <- task preset <- user overrides (config file) <- the batch that
-    ``train.batch_per_worker`` (a TrainConfig) asks for."""
+    ``train.batch_per_worker`` asks for."""
     base = merge_config(D4PGConfig, preset.d4pg, f"preset {preset.env_id}")
     d4pg = merge_config(D4PGConfig, overrides or {}, "d4pg settings", base=base)
-    per_worker = getattr(train, "batch_per_worker", 0)
-    if per_worker:
-        workers = train.workers + len(train.real_robot)
-        d4pg = merge_config(
-            D4PGConfig, {"batch_size": per_worker * workers}, "--batch-per-worker", base=d4pg
-        )
+    if train is not None and train.batch_per_worker:
+        batch = {"batch_size": train.batch_per_worker * train.rollout_workers}
+        d4pg = merge_config(D4PGConfig, batch, "--batch-per-worker", base=d4pg)
     return d4pg

@@ -155,7 +155,7 @@ class Program:
 
     def _start_workers(self) -> list[WorkerSlot]:
         cfg = self.cfg
-        n = cfg.workers + len(cfg.real_robot)
+        n = cfg.rollout_workers
         self._sigmas = worker_sigmas(self.d4pg, cfg, n)
         slots = []
         for i in range(n):
