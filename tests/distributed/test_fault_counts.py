@@ -66,5 +66,8 @@ def test_a_paused_robot_server_replaced_once_is_one_restart(tmp_path: Path) -> N
     assert summary["restarts"]["hung"] == 1, summary["restarts"]
     assert sum(summary["restarts"].values()) == 1, summary["restarts"]
     assert summary["servers_given_up"] == 0  # one fault is far from the policy's limit
-    assert summary["final_status_counts"].get("server_restarted", 0) == 1
+    # A pause during a step ends that episode as server_restarted; one during a reset is retried
+    # inside reset() on the replacement (base.RobotServerEnv.reset), and no episode ends. Either
+    # way the worker's view of the fault ends at most one episode.
+    assert summary["final_status_counts"].get("server_restarted", 0) <= 1, summary
     assert summary["faults/learner_failures"] == 0
