@@ -91,17 +91,19 @@ def check(paths: list[Path], costs: dict) -> list[dict]:
             if "env_steps_per_s" not in row:
                 continue
             key = (row["task"], row["workers"], row["envs"], row["batch"],
-                   row["samples_per_insert"], row.get("learner_threads") or 1)  # fmt: skip
+                   row["samples_per_insert"], row.get("learner_threads") or 1,
+                   row.get("d4pg", "{}"))  # fmt: skip
             runs[key].append(row)
     out = []
-    for (task, workers, envs, batch, spi, threads), rows in sorted(runs.items()):
+    for (task, workers, envs, batch, spi, threads, d4pg), rows in sorted(runs.items()):
         measured = statistics.median(r["env_steps_per_s"] for r in rows)
         model = predict(costs, task=task, cores=costs["cores"], workers=workers, envs=envs,
                         batch=batch, samples_per_insert=spi, threads=threads)  # fmt: skip
         learner = statistics.median(r["learner_steps_per_s"] for r in rows)
         out.append({
             "task": task, "workers": workers, "envs": envs, "batch": batch, "spi": spi,
-            "threads": threads, "runs": len(rows), "measured_median": round(measured, 1),
+            "threads": threads, "d4pg": d4pg, "runs": len(rows),
+            "measured_median": round(measured, 1),
             "measured_min": min(r["env_steps_per_s"] for r in rows),
             "measured_max": max(r["env_steps_per_s"] for r in rows),
             "model": round(model["env_steps_per_s"], 1), "bound": model["bound"],

@@ -117,6 +117,11 @@ class D4PGConfig:
     on a GPU), 'max-autotune'); empty: not compiled. The first steps pay the compilation."""
     bf16: bool = False
     """Run the networks under bf16 autocast (the losses and the optimizer stay float32)."""
+    rate_tolerance: int = 0
+    """0: the learner takes its steps inside the call that inserted the transitions paying for
+    them. T > 0 (at least ``sgd_steps_per_sample``): a learner thread steps between inserts, up
+    to T steps ahead of the samples-per-insert ratio, and an insert waits while more than T
+    steps are owed - the run keeps its ratio within T steps (Reverb's error buffer)."""
 
     def __post_init__(self) -> None:
         checks = [
@@ -168,6 +173,12 @@ class D4PGConfig:
                 "sgd_steps_per_sample",
                 self.sgd_steps_per_sample,
                 ">= 1",
+            ),
+            (
+                self.rate_tolerance == 0 or self.rate_tolerance >= self.sgd_steps_per_sample,
+                "rate_tolerance",
+                self.rate_tolerance,
+                "0 (coupled) or >= sgd_steps_per_sample",
             ),
             (
                 self.compile in COMPILE_MODES,

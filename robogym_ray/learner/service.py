@@ -10,24 +10,28 @@ import logging
 import os
 import time
 from collections.abc import Iterator
-from contextlib import contextmanager, suppress
+from contextlib import AbstractContextManager, contextmanager, nullcontext, suppress
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+import torch
 
 from robogym_ray.errors import DiskWriteError
 from robogym_ray.learner.checkpoint import CHECKPOINT_NAME, replay_path
 from robogym_ray.learner.config import D4PGConfig
 from robogym_ray.learner.learner import D4PGLearner
 from robogym_ray.learner.rate_limiter import SamplesPerInsert
+from robogym_ray.learner.stepping import BackgroundSteps
 from robogym_ray.storage import RunStorage
 
 log = logging.getLogger(__name__)
 
 
 class LearnerService:
-    """Inserts actor batches and runs learner steps at ``samples_per_insert``."""
+    """Inserts actor batches and runs learner steps at ``samples_per_insert``: inside ``add``
+    (coupled, the default), or on a thread of their own between inserts (``rate_tolerance`` >
+    0, ``learner/stepping.py``)."""
 
     def __init__(
         self,
@@ -52,7 +56,7 @@ class LearnerService:
         replay_snapshot_every_s: seconds between checkpoints that also write the replay, so a
             restarted learner restores it and loses only what came after (0: never).
         max_steps_per_call: cap on learner steps run inside one ``add`` (keeps the actor
-            responsive; the debt carries over to the next call).
+            responsive; the debt carries over to the next call). Coupled stepping only.
         """
         self.learner = D4PGLearner(d4pg, obs_dim, act_dim, seed=seed)
         self.config = d4pg
@@ -66,7 +70,9 @@ class LearnerService:
         self.checkpoint_every = checkpoint_every
         self.max_steps_per_call = max_steps_per_call
         self.inserted = 0
-        self.limiter = SamplesPerInsert(d4pg.samples_per_insert, d4pg.batch_size)
+        self.limiter = SamplesPerInsert(
+            d4pg.samples_per_insert, d4pg.batch_size, tolerance=d4pg.rate_tolerance
+        )
         self._last_checkpoint_step = 0
         self.restored_from_step = -1
         self.restored_replay = 0
@@ -78,6 +84,16 @@ class LearnerService:
             self.restored_from_step = self._last_checkpoint_step = self.learner.num_steps
             self.restored_replay = len(self.learner.replay)
             log.warning("learner restored from checkpoint at step %d", self.restored_from_step)
+        self.background: BackgroundSteps | None = None
+        if d4pg.rate_tolerance > 0:  # last: the thread may step (and checkpoint) at once
+            threads = torch.get_num_threads()  # the learner's, set on this thread
+            self.background = BackgroundSteps(
+                self.limiter,
+                self.learner.can_step,
+                self.train,
+                d4pg.sgd_steps_per_sample,
+                on_start=lambda: torch.set_num_threads(threads),
+            )
 
     @property
     def version(self) -> int:
@@ -85,17 +101,27 @@ class LearnerService:
         return self.learner.num_steps
 
     def add(self, batch: dict[str, np.ndarray], priorities: np.ndarray | None = None) -> dict:
-        """Insert transitions, then run the learner steps they pay for; returns metrics."""
+        """Insert transitions, then run the learner steps they pay for (coupled) or wait until
+        the stepping thread owes no more than the tolerance (decoupled); returns metrics: the
+        last step's, with ``steps_this_call`` the steps taken since the previous reply."""
         n = len(batch["reward"])
+        if self.background is None:
+            self._insert(batch, priorities, n)
+            return self.train(self.limiter.take(self.max_steps_per_call))
+        self.background.raise_error()
+        with self.background.exclusive():
+            self._insert(batch, priorities, n)
+            self.background.wait_within_tolerance()
+            out, steps = self.background.reply()
+            return self._counted(out, steps)
+
+    def _insert(self, batch: dict[str, np.ndarray], priorities: np.ndarray | None, n: int) -> None:
         self.learner.add(batch, priorities)
         self.inserted += n
         self.limiter.inserted(n, warm=self.learner.can_step())
-        return self.train(self.limiter.take(self.max_steps_per_call))
 
-    def train(self, steps: int) -> dict:
-        start = time.perf_counter()
-        out = self.learner.run(steps)
-        self._step_time += time.perf_counter() - start
+    def _counted(self, out: dict, steps: int) -> dict:
+        """``out`` with the counters every reply carries."""
         out.update(
             learner_steps=float(self.version),
             steps_this_call=float(steps),
@@ -104,6 +130,23 @@ class LearnerService:
             learner_time_s=self._step_time,
             pid=float(os.getpid()),  # the driver counts a learner restart once, by its pid
         )
+        return out
+
+    def _exclusive(self) -> AbstractContextManager[None]:
+        """The learner's state to this caller alone (a stepping thread waits)."""
+        return nullcontext() if self.background is None else self.background.exclusive()
+
+    def close(self) -> None:
+        """Stop a stepping thread (after its step in progress)."""
+        if self.background is not None:
+            self.background.close()
+
+    def train(self, steps: int) -> dict:
+        """Take ``steps`` learner steps now, and the checkpoints they make due."""
+        start = time.perf_counter()
+        out = self.learner.run(steps)
+        self._step_time += time.perf_counter() - start
+        self._counted(out, steps)
         if (
             self.checkpoint_every
             and self.version - self._last_checkpoint_step >= self.checkpoint_every
@@ -115,14 +158,17 @@ class LearnerService:
         return out
 
     def initial_priorities(self, batch: dict[str, np.ndarray]) -> np.ndarray:
-        return self.learner.compute_initial_priorities(batch)
+        with self._exclusive():
+            return self.learner.compute_initial_priorities(batch)
 
     def get_weights(self) -> tuple[dict[str, np.ndarray], int]:
-        return self.learner.get_weights(), self.version
+        with self._exclusive():
+            return self.learner.get_weights(), self.version
 
     def get_eval_weights(self) -> tuple[dict[str, np.ndarray], int]:
         """What the evaluator scores: the policy average when the learner keeps one."""
-        return self.learner.get_eval_weights(), self.version
+        with self._exclusive():
+            return self.learner.get_eval_weights(), self.version
 
     def checkpoint(self, include_replay: bool = False, final: bool = False) -> str | None:
         """Write the checkpoint atomically (a crash mid-write never leaves a broken file).
@@ -136,6 +182,10 @@ class LearnerService:
         """
         if self.checkpoint_dir is None:
             return None
+        with self._exclusive():
+            return self._checkpoint(include_replay, final)
+
+    def _checkpoint(self, include_replay: bool, final: bool) -> str:
         # Not named ``final``: that is the parameter the replay decision below reads.
         path = self.checkpoint_dir / CHECKPOINT_NAME
         tmp = self.checkpoint_dir / f".{CHECKPOINT_NAME}.{os.getpid()}.tmp"
@@ -158,14 +208,15 @@ class LearnerService:
 
     def status(self) -> dict[str, Any]:
         """Counters that survive (version) or reveal (restored_from_step) a restart."""
-        return {
-            "pid": os.getpid(),
-            "version": self.version,
-            "inserted": self.inserted,
-            "restored_from_step": self.restored_from_step,
-            "total_added": int(self.learner.replay.total_added),
-            "restored_replay": self.restored_replay,
-        }
+        with self._exclusive():
+            return {
+                "pid": os.getpid(),
+                "version": self.version,
+                "inserted": self.inserted,
+                "restored_from_step": self.restored_from_step,
+                "total_added": int(self.learner.replay.total_added),
+                "restored_replay": self.restored_replay,
+            }
 
 
 @contextmanager
