@@ -35,8 +35,8 @@ class SamplesPerInsert:
     def take(self, cap: int | None = None) -> int:
         """The whole learner steps earned (at most ``cap``); the rest carries over."""
         steps = int(self.earned) if cap is None else min(int(self.earned), cap)
-        self.earned -= max(steps, 0)
-        return max(steps, 0)
+        self.earned -= steps
+        return steps
 
     def may_step(self, steps: int) -> bool:
         """Whether ``steps`` more stay within the tolerance ahead of what was earned."""

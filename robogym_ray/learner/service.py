@@ -15,7 +15,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import torch
 
 from robogym_ray.errors import DiskWriteError
 from robogym_ray.learner.checkpoint import CHECKPOINT_NAME, replay_path
@@ -86,13 +85,9 @@ class LearnerService:
             log.warning("learner restored from checkpoint at step %d", self.restored_from_step)
         self.background: BackgroundSteps | None = None
         if d4pg.rate_tolerance > 0:  # last: the thread may step (and checkpoint) at once
-            threads = torch.get_num_threads()  # the learner's, set on this thread
+            # torch's thread count is process-wide: the new thread uses the learner's.
             self.background = BackgroundSteps(
-                self.limiter,
-                self.learner.can_step,
-                self.train,
-                d4pg.sgd_steps_per_sample,
-                on_start=lambda: torch.set_num_threads(threads),
+                self.limiter, self.learner.can_step, self.train, d4pg.sgd_steps_per_sample
             )
 
     @property

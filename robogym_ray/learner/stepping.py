@@ -31,20 +31,16 @@ class BackgroundSteps:
         can_step: Callable[[], bool],
         train: Callable[[int], dict[str, Any]],
         chunk: int = 1,
-        on_start: Callable[[], None] | None = None,
     ) -> None:
         """Args:
         limiter: the run's ratio, with ``tolerance`` >= ``chunk`` (else no step could start).
         can_step: whether the replay is warm.
         train: takes that many learner steps (and any checkpoint they are due), returns metrics.
         chunk: steps per turn (``sgd_steps_per_sample``: one sampled block).
-        on_start: run first on the new thread (the service sets the learner's torch threads
-            there again: whether a new thread inherits them is the OpenMP runtime's choice).
         """
         if limiter.tolerance < chunk:
             raise ValueError(f"tolerance {limiter.tolerance} < {chunk} steps per turn")
         self.limiter, self.can_step, self.train, self.chunk = limiter, can_step, train, chunk
-        self._on_start = on_start
         self._cond = threading.Condition()  # an RLock: train's checkpoint re-enters it
         self._count = threading.Lock()
         self._wanted = 0  # callers blocked on the lock: the thread yields after its step
@@ -108,8 +104,6 @@ class BackgroundSteps:
         return self.can_step() and self.limiter.may_step(self.chunk)
 
     def _loop(self) -> None:
-        if self._on_start is not None:
-            self._on_start()
         with self._cond:
             while True:
                 while not self._stop and not self._may_go():
