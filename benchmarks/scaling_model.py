@@ -18,7 +18,9 @@ learner steps per env step, env steps/s is the smallest of
 and learner steps/s is ``lam`` times it. Where the learner shares its cores with the workers
 (fewer cores than workers + learner threads + 1), a CPU learner step takes
 ``1 / learner_share_when_shared`` times its time alone: measured once, on the recipe's run
-(2 workers x 4 envs, batch 256), and checked on the others. Costs are this machine's, measured
+(2 workers x 4 envs, batch 256), and checked on the others; and it counts no more threads than
+the cores the workers leave (at least one), a rule added after the one run that broke it and
+then checked on runs predicted before they ran. Costs are this machine's, measured
 (``scaling_costs.json``).
 """
 
@@ -61,8 +63,13 @@ def predict(
     env_cpu = costs["env_cpu_s"][task][str(envs)]
     other = costs["other_cpu_s"]
     lam = samples_per_insert / batch
+    shared = not gpu and cores < workers + threads + 1
+    if shared:
+        # A thread beyond the cores the workers leave waits on them at every parallel op's
+        # barrier: it adds nothing (measured: it costs; this term was added after that run).
+        threads = max(1, min(threads, int(cores - workers)))
     step_s = learner_seconds(costs, batch, threads, gpu)
-    if not gpu and cores < workers + threads + 1:
+    if shared:
         # Cores shared with the workers: a learner step in a run took longer than alone.
         step_s /= costs["learner_share_when_shared"]
     learner_cpu = 0.0 if gpu else step_s * threads
