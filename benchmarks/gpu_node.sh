@@ -1,39 +1,83 @@
 #!/usr/bin/env bash
-# Issue 42's GPU figures on a 16-core node with one GPU, in two parts of under 10 minutes each:
-#   bash benchmarks/gpu_node.sh learner OUT   the learner alone on CUDA, batch 256 to 16,384,
-#                                             eager and compiled (CUDA graphs), then bf16;
+# Issue 42's GPU figures on a node with one GPU (docs/scaling.md says how they are read).
+#
+#   bash benchmarks/gpu_node.sh learner OUT   the learner alone on CUDA, batch 256 to 16,384:
+#                                             eager, then compiled (CUDA graphs), then bf16 with
+#                                             8 SGD steps per sample; about 7 minutes, most of
+#                                             it compiling; a line of JSON per figure as it comes.
 #   bash benchmarks/gpu_node.sh train OUT     90-s navigation trainings with 2, 4, 8 and 14
 #                                             workers and the GPU learner, then 8 workers with
-#                                             the CPU learner (one thread per learner CPU).
-# Each writes JSON lines to OUT/<part>.jsonl; docs/scaling.md says how they are read.
+#                                             the CPU learner (one thread per learner CPU);
+#                                             about 10 minutes; needs the project installed.
+#   bash benchmarks/gpu_node.sh wheels        here, with a network: the wheels the learner part
+#                                             needs on a machine that has only torch (below).
+#
+# The learner part needs torch, numpy and gymnasium (importing robogym_ray registers its env
+# ids), not the project installed: the repository's root goes on PYTHONPATH. A machine with
+# torch and no network - this workplace's device machines run Python 3.12 with torch and no
+# gymnasium - gets gymnasium from .device-wheels/ (git-ignored, 0.5 MB), which `wheels` fills
+# and the device call carries. The train part cannot run on those machines: ray's wheel (79 MB)
+# is larger than one call carries (64 MiB) and pybullet has no wheel for Python 3.12. It is for
+# a GPU node of one's own, with `pip install -e .` done.
+#
+# Rehearse the learner part here before spending device time (no GPU, every switch exercised):
+#   GPU_NODE_DEVICE=cpu GPU_NODE_SECONDS=1 bash benchmarks/gpu_node.sh learner /tmp/rehearsal
 set -euo pipefail
-part=${1:?learner or train}
+part=${1:?learner, train or wheels}
+root=$(cd "$(dirname "$0")/.." && pwd)
+wheels="$root/.device-wheels"
+py=${PYTHON:-python3}
+
+if [ "$part" = wheels ]; then
+  # The device's interpreter, not this one: Python 3.12 on manylinux x86-64.
+  "$py" -m pip download -q --no-deps --only-binary=:all: --python-version 3.12 \
+    --implementation cp --platform manylinux2014_x86_64 -d "$wheels" \
+    gymnasium==1.4.0 farama-notifications==0.0.6
+  ls -l "$wheels"
+  exit 0
+fi
+
 out=${2:?output folder}
 mkdir -p "$out"
 export PYTHONUNBUFFERED=1 RAY_AUTH_MODE=disabled
-nvidia-smi --query-gpu=name,memory.total --format=csv,noheader | tee "$out/device.txt"
-nproc >> "$out/device.txt"
+device=${GPU_NODE_DEVICE:-cuda}
+seconds=${GPU_NODE_SECONDS:-5}
+if ! "$py" -c "import gymnasium" 2>/dev/null && [ -d "$wheels" ]; then
+  "$py" -m pip install -q --no-index --no-deps --no-compile --target /tmp/gpu-node-site \
+    "$wheels"/*.whl
+  export PYTHONPATH=/tmp/gpu-node-site${PYTHONPATH:+:$PYTHONPATH}
+fi
+# This checkout, installed or not (a script's own folder, not the current one, is on its path).
+export PYTHONPATH=$root${PYTHONPATH:+:$PYTHONPATH}
+(cd / && "$py" -c "import robogym_ray") # fails here, in seconds, not after a machine's start
+{
+  if [ "$device" = cuda ]; then
+    nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv,noheader
+  fi
+  "$py" -c "import torch; print('torch', torch.__version__)"
+  echo "cores $(nproc)"
+} | tee "$out/device.txt"
+
+capacity() { "$py" "$root/benchmarks/learner_capacity.py" alone --device "$device" "$@"; }
 case "$part" in
 learner)
-  python benchmarks/learner_capacity.py alone --device cuda --batches 256 1024 4096 16384 \
-    --seconds 5 | tee "$out/learner.jsonl"
-  python benchmarks/learner_capacity.py alone --device cuda --batches 256 1024 4096 16384 \
-    --seconds 5 --warmup 30 --compile reduce-overhead | tee -a "$out/learner.jsonl"
-  python benchmarks/learner_capacity.py alone --device cuda --batches 4096 16384 \
-    --seconds 5 --warmup 30 --compile reduce-overhead --bf16 --sgd-steps 8 \
-    | tee -a "$out/learner.jsonl"
+  capacity --batches 256 1024 4096 16384 --seconds "$seconds" | tee "$out/learner.jsonl"
+  capacity --batches 256 1024 4096 16384 --seconds "$seconds" --warmup 30 \
+    --compile reduce-overhead | tee -a "$out/learner.jsonl"
+  capacity --batches 4096 16384 --seconds "$seconds" --warmup 30 --compile reduce-overhead \
+    --bf16 --sgd-steps 8 | tee -a "$out/learner.jsonl"
   ;;
 train)
   cpus=$(nproc)
   for workers in 2 4 8 14; do
-    python benchmarks/scaling.py train --task navigation --workers "$workers" --envs 4 \
+    "$py" "$root/benchmarks/scaling.py" train --task navigation --workers "$workers" --envs 4 \
       --batch $((128 * workers)) --samples-per-insert 32 --wall-s 90 --repeats 1 \
       --num-cpus "$cpus" --learner-cpus 1 --d4pg '{"compile": "reduce-overhead"}' \
       | tee -a "$out/train.jsonl"
   done
-  python benchmarks/scaling.py train --task navigation --workers 8 --envs 4 --batch 1024 \
-    --samples-per-insert 32 --wall-s 90 --repeats 1 --num-cpus "$cpus" --learner-cpus 4 \
-    --learner-gpus 0 --d4pg '{"device": "cpu"}' | tee -a "$out/train.jsonl"
+  "$py" "$root/benchmarks/scaling.py" train --task navigation --workers 8 --envs 4 \
+    --batch 1024 --samples-per-insert 32 --wall-s 90 --repeats 1 --num-cpus "$cpus" \
+    --learner-cpus 4 --learner-gpus 0 --d4pg '{"device": "cpu"}' | tee -a "$out/train.jsonl"
   ;;
-*) echo "unknown part $part: learner or train" >&2; exit 2 ;;
+*) echo "unknown part $part: learner, train or wheels" >&2; exit 2 ;;
 esac
