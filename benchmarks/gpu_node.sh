@@ -4,7 +4,8 @@
 #   bash benchmarks/gpu_node.sh learner OUT   the learner alone on CUDA, batch 256 to 16,384:
 #                                             eager, then compiled (CUDA graphs), then bf16 with
 #                                             8 SGD steps per sample; about 7 minutes (an
-#                                             estimate), most of it compiling; a line of JSON per figure as it comes.
+#                                             estimate), most of it compiling; a line of JSON
+#                                             per figure as it comes.
 #   bash benchmarks/gpu_node.sh train OUT     90-s navigation trainings with 2, 4, 8 and 14
 #                                             workers and the GPU learner, then 8 workers with
 #                                             the CPU learner (one thread per learner CPU);
