@@ -265,6 +265,10 @@ class _Evaluator(Evaluator):
     def ping(self) -> int:
         return os.getpid()
 
+    def status(self) -> dict[str, int]:
+        """Its process and the episodes it has played (a replacement's count goes on)."""
+        return {"pid": os.getpid(), "episodes": self.episodes}
+
 
 class _Learner(LearnerService):
     def __init__(self, d4pg: D4PGConfig, *args: Any, **kwargs: Any) -> None:

@@ -35,12 +35,15 @@ class Evaluator:
         seed: int = 10_000,
         window: int = 100,
         video_every_s: float = 0.0,
+        first_episode: int = 0,
     ) -> None:
+        """``first_episode``: episodes a dead predecessor played; a replacement goes on from
+        there (its count and seeds), with an empty window."""
         self.env = make_env()
         obs_dim, act_dim = box_dims(self.env)
         self.actor = BehaviourPolicy(obs_dim, act_dim, d4pg.policy_hidden, 0.0, d4pg.layer_norm)
         self.seed = seed
-        self.episodes = 0
+        self.episodes = first_episode
         self.statuses: deque[str] = deque(maxlen=window)
         self.returns: deque[float] = deque(maxlen=window)
         self.video_every_s = video_every_s if self.env.render_mode == "rgb_array" else 0.0

@@ -123,8 +123,12 @@ class EvalSchedule:
             if self._evaluator_alive():
                 log.warning("an evaluation was lost with its weights (learner restarted)")
             else:
-                log.warning("evaluator failed; evaluation stops")
-                self.p.evaluator = None
+                # Its process or its node is gone. It held nothing a new one cannot rebuild
+                # but its window of rates, which starts again; its count and seeds go on.
+                self.stats.evaluator_failures += 1
+                played = int(self.stats.eval.get("eval_episodes", 0))
+                self.p.replace_evaluator(self.stats.evaluator_failures, first_episode=played)
+                log.warning("evaluator failed; replaced (%d so far)", self.stats.evaluator_failures)
 
     def _evaluator_alive(self) -> bool:
         try:

@@ -119,14 +119,7 @@ class Program:
                  status["threads"])  # fmt: skip
         self.workers = self._start_workers()
         if cfg.evaluator:
-            kwargs = self._env_kwargs(None) | evaluator_env_kwargs(cfg, env_id)
-            self.evaluator = remote.EvaluatorActor.options(
-                num_cpus=cfg.evaluator_cpus,
-                **requires(cfg.evaluator_resource, *self._sim_resources()),
-            ).remote(
-                make_gym_env(env_id, kwargs), d4pg,
-                seed=cfg.seed + 10_000, video_every_s=cfg.video_interval_s,
-            )  # fmt: skip
+            self.evaluator = self._evaluator_actor()
         checkpoints = self.storage.child("checkpoints")
         staged = self.run_dir / "checkpoints"
         selecting = cfg.select_episodes and self.evaluator is not None
@@ -184,6 +177,27 @@ class Program:
             revisits=revisits_for(cfg, i) if real_env is None else None,
             num_envs=1 if real_env else cfg.envs_per_worker, learner=self.learner,
         )  # fmt: skip
+
+    def _evaluator_actor(self, generation: int = 0, first_episode: int = 0) -> Any:
+        cfg, env_id = self.cfg, self.preset.env_id
+        kwargs = self._env_kwargs(None) | evaluator_env_kwargs(cfg, env_id)
+        name = f"evaluator-{self.name}" + (f"-{generation}" if generation else "")
+        return remote.EvaluatorActor.options(
+            num_cpus=cfg.evaluator_cpus, name=name, namespace=remote.NAMESPACE,
+            **requires(cfg.evaluator_resource, *self._sim_resources()),
+        ).remote(
+            make_gym_env(env_id, kwargs), self.d4pg,
+            seed=cfg.seed + 10_000, video_every_s=cfg.video_interval_s,
+            first_episode=first_episode,
+        )  # fmt: skip
+
+    def replace_evaluator(self, generation: int, first_episode: int) -> None:
+        """Start a new evaluator in a dead one's place (its process or its node lost): it
+        leases the server the dead one held, released here, and goes on from the episodes
+        the dead one reported (its count and seeds; its window of rates starts empty)."""
+        if self.supervision is not None:
+            self.supervision.release_holder("evaluator")
+        self.evaluator = self._evaluator_actor(generation, first_episode)
 
     def replace_worker(self, slot: WorkerSlot) -> bool:
         """Start a new rollout worker in a simulated worker's place: it leases the server the

@@ -48,6 +48,9 @@ class RunStats:
     learner_failures: int = 0
     worker_failures: int = 0
     worker_replacements: int = 0
+    evaluator_failures: int = 0
+    """Evaluator processes lost (each replaced by a new one); an evaluation lost with a dead
+    learner's weights is not one."""
     transitions_sent: int = 0
     """Transitions the workers sent to the learner (its replay should have them all)."""
     abandoned_real_calls: int = 0
@@ -159,6 +162,7 @@ def scalars(
         "faults/learner_failures": float(s.learner_failures),
         "faults/worker_failures": float(s.worker_failures),
         "faults/worker_replacements": float(s.worker_replacements),
+        "faults/evaluator_failures": float(s.evaluator_failures),
         "faults/robot_errors": float(s.robot_errors),
     })  # fmt: skip
     out.update({f"restarts/{cause}": float(n) for cause, n in restarts.items()})

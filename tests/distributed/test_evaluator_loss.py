@@ -1,0 +1,76 @@
+"""A lost evaluator is replaced: its process killed mid-run, a new one leases the server the
+dead one held (--sim-path grpc) and goes on from its episodes; the run counts the loss."""
+
+from __future__ import annotations
+
+import os
+import signal
+import threading
+from pathlib import Path
+
+import pytest
+import ray
+
+from robogym_ray.distributed import remote
+from robogym_ray.training.config import TrainConfig
+from robogym_ray.training.run import run_training
+
+pytestmark = [pytest.mark.ray, pytest.mark.slow, pytest.mark.usefixtures("ray_cluster")]
+
+KILL_AFTER = 3
+"""Episodes the first evaluator plays before it is killed: more than a replacement that
+started its count again would report after its first call (one episode)."""
+
+
+def test_a_killed_evaluator_is_replaced_and_goes_on(tmp_path: Path) -> None:
+    run = "evalloss"
+    cfg = TrainConfig(
+        task="navigation",
+        workers=1,
+        sim_path="grpc",  # the evaluator leases a supervised server, as holder "evaluator"
+        envs_per_worker=1,
+        total_steps=10**6,
+        max_wall_s=45.0,
+        logdir=str(tmp_path),
+        run_name=run,
+        progress=False,
+    )
+    done = threading.Event()
+    seen: dict[str, int] = {}
+
+    def status(name: str) -> dict[str, int] | None:
+        try:
+            actor = ray.get_actor(name, namespace=remote.NAMESPACE)
+            return ray.get(actor.status.remote(), timeout=30)  # waits for a running episode
+        except Exception:  # noqa: BLE001 - not started yet, or already gone
+            return None
+
+    def kill_then_watch() -> None:
+        while not done.wait(0.3):
+            first = status(f"evaluator-{run}")
+            if first and first["episodes"] >= KILL_AFTER:
+                os.kill(first["pid"], signal.SIGKILL)
+                seen["killed_at"] = first["episodes"]
+                break
+        while not done.wait(0.3):
+            second = status(f"evaluator-{run}-1")
+            if second and second["episodes"] > 0:
+                seen["replacement"] = second["episodes"]
+                seen["replacement_pid"] = second["pid"]
+                return
+
+    watcher = threading.Thread(target=kill_then_watch)
+    watcher.start()
+    try:
+        summary = run_training(cfg)
+    finally:
+        done.set()
+        watcher.join()
+    assert seen.get("killed_at", 0) >= KILL_AFTER, seen
+    assert summary["faults/evaluator_failures"] == 1
+    # The replacement went on from the dead one's count, in a process of its own.
+    assert seen.get("replacement", 0) > seen["killed_at"], seen
+    assert summary["eval/episodes"] > seen["killed_at"]
+    # Losing the evaluator cost nothing else.
+    assert summary["faults/learner_failures"] == 0 == summary["faults/worker_failures"]
+    assert sum(summary["restarts"].values()) == 0, summary["restarts"]
