@@ -31,6 +31,9 @@ class EvalSchedule:
         """A policy file could not be written (a full disk): the loop ends the run on it."""
         self.snapshot_ask: tuple[Any, int, float] | None = None
         """A timed snapshot's weights asked of the learner: (ref, mark, wall s when asked)."""
+        self.replacement_unheard = False
+        """An evaluator replaced a lost one and has not answered yet: perhaps no node left
+        can place it, so the run's end does not wait for it without a bound."""
 
     def start(self, episodes: int = 1) -> Any:
         """Start a call of ``episodes`` greedy episodes (a selector's own count when it has
@@ -92,21 +95,35 @@ class EvalSchedule:
         policy plays ``final_eval_episodes`` greedy episodes now, so ``eval/*`` and the
         summary always have rates. ``eval_final_episodes`` says which it was: the episodes
         of that final call, 0 when the rates are the evaluator's running window."""
-        if ref is not None:
+        if ref is not None and self._will_answer(ref):
             self._take(ref, logger, wall_s)
         if self.p.evaluator is None:
             return
         final_episodes = 0
         if not self.stats.eval:
             final_episodes = self.cfg.final_eval_episodes
-            self._take(self.start(final_episodes), logger, wall_s)
+            last = self.start(final_episodes)
+            if self._will_answer(last):
+                self._take(last, logger, wall_s)
         if self.stats.eval:  # empty only when that call was lost with its actor
             self.stats.eval["eval_final_episodes"] = float(final_episodes)
+
+    def _will_answer(self, ref: Any) -> bool:
+        """Whether to wait for ``ref``: always, but for an unheard replacement, which gets
+        ``worker_deadline_s`` (a simulation's bound) and is then given up."""
+        if not self.replacement_unheard or ray.wait([ref], timeout=self.cfg.worker_deadline_s)[0]:
+            return True
+        log.warning("the evaluator that replaced a lost one did not answer in %g s (no node "
+                    "left to place it?); the run ends without its evaluation",
+                    self.cfg.worker_deadline_s)  # fmt: skip
+        self.p.evaluator = None
+        return False
 
     def _take(self, ref: Any, logger: Any, wall_s: float) -> None:
         """Record a call's result (blocks until it is done): rates, history, GIF, snapshot."""
         try:
             self.stats.eval = ray.get(ref)
+            self.replacement_unheard = False
             if (gif := self.stats.eval.pop(VIDEO_KEY, None)) is not None:
                 logger.gif("eval/video", gif, self.stats.env_steps)
             self.stats.eval_history.append(stats.eval_entry(self.stats, wall_s))
@@ -128,6 +145,7 @@ class EvalSchedule:
                 self.stats.evaluator_failures += 1
                 played = int(self.stats.eval.get("eval_episodes", 0))
                 self.p.replace_evaluator(self.stats.evaluator_failures, first_episode=played)
+                self.replacement_unheard = True
                 log.warning("evaluator failed; replaced (%d so far)", self.stats.evaluator_failures)
 
     def _evaluator_alive(self) -> bool:

@@ -7,6 +7,10 @@ machine's speed, so each case is driven here on the real program's actors direct
 
 from __future__ import annotations
 
+import dataclasses
+import os
+import signal
+import time
 from pathlib import Path
 
 import pytest
@@ -95,3 +99,34 @@ def test_the_final_evaluation_needs_at_least_one_episode() -> None:
 
     with pytest.raises(ConfigError, match="final_eval_episodes"):
         TrainConfig(task=NAV, final_eval_episodes=0)
+
+
+def test_a_replacement_evaluator_no_node_can_place_does_not_hold_up_the_end(
+    tmp_path: Path,
+) -> None:
+    cfg = TrainConfig(
+        task=NAV, workers=1, total_steps=1000, logdir=str(tmp_path), run_name="unplaced",
+        progress=False, worker_deadline_s=3.0,
+    )  # fmt: skip
+    preset = resolve_task(cfg.task)
+    program = Program(cfg, d4pg_for(preset, None), preset, EmulationConfig())
+    logger = RunLogger(program.run_dir, total=cfg.total_steps, progress=False)
+    try:
+        run_stats = RunStats()
+        schedule = EvalSchedule(program, run_stats)
+        schedule.final(None, logger, wall_s=1.0)  # one evaluation, then the evaluator is lost
+        assert run_stats.eval["eval_episodes"] == cfg.final_eval_episodes
+        # Its node is gone, and with it the only node that had the resource it asks for.
+        program.cfg = dataclasses.replace(cfg, evaluator_resource="lost-node")
+        os.kill(ray.get(program.evaluator.ping.remote()), signal.SIGKILL)
+        schedule._take(schedule.start(), logger, wall_s=2.0)  # fails: replaced, not placed
+        assert run_stats.evaluator_failures == 1 and program.evaluator is not None
+        started = time.monotonic()
+        schedule.final(schedule.start(), logger, wall_s=3.0)
+        # Given up after worker_deadline_s; the run's rates are the lost evaluator's.
+        assert time.monotonic() - started < cfg.worker_deadline_s + 10
+        assert program.evaluator is None
+        assert run_stats.eval["eval_episodes"] == cfg.final_eval_episodes
+    finally:
+        logger.close()
+        program.shutdown()
