@@ -27,7 +27,7 @@ set -euo pipefail
 part=${1:?learner, train or wheels}
 root=$(cd "$(dirname "$0")/.." && pwd)
 wheels="$root/.device-wheels"
-py=${PYTHON:-python3}
+py=$(command -v "${PYTHON:-python3}") # absolute: the import check below runs from /
 
 if [ "$part" = wheels ]; then
   # The device's interpreter, not this one: Python 3.12 on manylinux x86-64.
@@ -43,7 +43,12 @@ mkdir -p "$out"
 export PYTHONUNBUFFERED=1 RAY_AUTH_MODE=disabled
 device=${GPU_NODE_DEVICE:-cuda}
 seconds=${GPU_NODE_SECONDS:-5}
-if ! "$py" -c "import gymnasium" 2>/dev/null && [ -d "$wheels" ]; then
+if ! "$py" -c "import gymnasium" 2>/dev/null; then
+  if ! compgen -G "$wheels/*.whl" >/dev/null; then
+    echo "no gymnasium here and no wheels in $wheels: run 'bash $0 wheels' where pip works," \
+      "and carry .device-wheels with the call" >&2
+    exit 2
+  fi
   "$py" -m pip install -q --no-index --no-deps --no-compile --target /tmp/gpu-node-site \
     "$wheels"/*.whl
   export PYTHONPATH=/tmp/gpu-node-site${PYTHONPATH:+:$PYTHONPATH}

@@ -52,5 +52,5 @@ def test_a_gpu_learner_leaves_the_cores_to_bind(model):
 
 def test_the_check_covers_every_committed_run(model):
     rows = model.check(sorted(RESULTS.glob("train-*.jsonl")), model.load_costs())
-    assert len(rows) == 20
+    assert len(rows) >= 20  # as docs/scaling.md lists them; more as runs are added
     assert all(r["runs"] >= 1 and r["measured_median"] > 0 for r in rows)

@@ -6,10 +6,11 @@ from __future__ import annotations
 
 import logging
 import time
+from contextlib import suppress
 from typing import Any
 
 import ray
-from ray.exceptions import RayActorError
+from ray.exceptions import RayActorError, RayError
 
 from robogym_ray.errors import DiskWriteError
 from robogym_ray.experience.evaluator import VIDEO_KEY
@@ -31,9 +32,9 @@ class EvalSchedule:
         """A policy file could not be written (a full disk): the loop ends the run on it."""
         self.snapshot_ask: tuple[Any, int, float] | None = None
         """A timed snapshot's weights asked of the learner: (ref, mark, wall s when asked)."""
-        self.replacement_unheard = False
-        """An evaluator replaced a lost one and has not answered yet: perhaps no node left
-        can place it, so the run's end does not wait for it without a bound."""
+        self.replacement_ping: Any = None
+        """The first call to an evaluator that replaced a lost one, until it answers: one
+        that no node left can place never does, and the run's end must not wait on it."""
 
     def start(self, episodes: int = 1) -> Any:
         """Start a call of ``episodes`` greedy episodes (a selector's own count when it has
@@ -96,7 +97,8 @@ class EvalSchedule:
         summary always have rates. ``eval_final_episodes`` says which it was: the episodes
         of that final call, 0 when the rates are the evaluator's running window."""
         if ref is not None and self._will_answer(ref):
-            self._take(ref, logger, wall_s)
+            # Lost now, it is replaced only if the run has no rates yet: else they stand.
+            self._take(ref, logger, wall_s, replace=not self.stats.eval)
         if self.p.evaluator is None:
             return
         final_episodes = 0
@@ -109,21 +111,36 @@ class EvalSchedule:
             self.stats.eval["eval_final_episodes"] = float(final_episodes)
 
     def _will_answer(self, ref: Any) -> bool:
-        """Whether to wait for ``ref``: always, but for an unheard replacement, which gets
-        ``worker_deadline_s`` (a simulation's bound) and is then given up."""
-        if not self.replacement_unheard or ray.wait([ref], timeout=self.cfg.worker_deadline_s)[0]:
+        """Whether to wait for ``ref`` (without a bound): yes, unless its evaluator is a
+        replacement that has not started within ``worker_deadline_s``, which is given up."""
+        ping = self.replacement_ping
+        if ping is None or ray.wait([ping], timeout=self.cfg.worker_deadline_s)[0]:
             return True
-        log.warning("the evaluator that replaced a lost one did not answer in %g s (no node "
+        log.warning("the evaluator that replaced a lost one did not start in %g s (no node "
                     "left to place it?); the run ends without its evaluation",
                     self.cfg.worker_deadline_s)  # fmt: skip
-        self.p.evaluator = None
+        self._give_up()
         return False
 
-    def _take(self, ref: Any, logger: Any, wall_s: float) -> None:
-        """Record a call's result (blocks until it is done): rates, history, GIF, snapshot."""
+    def _replacement_started(self) -> bool:
+        """Whether the last replacement answered its first call (True when there is none)."""
+        ping = self.replacement_ping
+        if ping is not None and ray.wait([ping], timeout=0)[0]:
+            with suppress(RayActorError):
+                ray.get(ping)
+                self.replacement_ping = None
+        return self.replacement_ping is None
+
+    def _give_up(self) -> None:
+        with suppress(RayError):
+            ray.kill(self.p.evaluator)
+        self.p.evaluator = None
+
+    def _take(self, ref: Any, logger: Any, wall_s: float, replace: bool = True) -> None:
+        """Record a call's result (blocks until it is done): rates, history, GIF, snapshot.
+        A lost evaluator is replaced (``replace``) unless its own replacement never started."""
         try:
             self.stats.eval = ray.get(ref)
-            self.replacement_unheard = False
             if (gif := self.stats.eval.pop(VIDEO_KEY, None)) is not None:
                 logger.gif("eval/video", gif, self.stats.env_steps)
             self.stats.eval_history.append(stats.eval_entry(self.stats, wall_s))
@@ -139,14 +156,21 @@ class EvalSchedule:
             # it): then only this evaluation is lost. Only a dead evaluator stops evaluating.
             if self._evaluator_alive():
                 log.warning("an evaluation was lost with its weights (learner restarted)")
-            else:
+                return
+            self.stats.evaluator_failures += 1
+            if not self._replacement_started():  # it cannot start: another would not either
+                log.warning("the evaluator that replaced a lost one failed before it started; "
+                            "evaluation stops")  # fmt: skip
+                self._give_up()
+            elif replace:
                 # Its process or its node is gone. It held nothing a new one cannot rebuild
                 # but its window of rates, which starts again; its count and seeds go on.
-                self.stats.evaluator_failures += 1
                 played = int(self.stats.eval.get("eval_episodes", 0))
                 self.p.replace_evaluator(self.stats.evaluator_failures, first_episode=played)
-                self.replacement_unheard = True
+                self.replacement_ping = self.p.evaluator.ping.remote()
                 log.warning("evaluator failed; replaced (%d so far)", self.stats.evaluator_failures)
+            else:
+                log.warning("evaluator failed at the run's end; its last rates stand")
 
     def _evaluator_alive(self) -> bool:
         try:

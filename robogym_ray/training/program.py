@@ -22,12 +22,14 @@ from __future__ import annotations
 
 import logging
 import os
+from contextlib import suppress
 from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import ray
+from ray.exceptions import RayError
 
 from robogym_ray.distributed import remote
 from robogym_ray.distributed.real_client import RealRobotClientFactory
@@ -195,6 +197,8 @@ class Program:
         """Start a new evaluator in a dead one's place (its process or its node lost): it
         leases the server the dead one held, released here, and goes on from the episodes
         the dead one reported (its count and seeds; its window of rates starts empty)."""
+        with suppress(RayError):  # one that only failed to answer in time is not left running
+            ray.kill(self.evaluator)
         if self.supervision is not None:
             self.supervision.release_holder("evaluator")
         self.evaluator = self._evaluator_actor(generation, first_episode)

@@ -30,7 +30,7 @@ def test_a_killed_evaluator_is_replaced_and_goes_on(tmp_path: Path) -> None:
         sim_path="grpc",  # the evaluator leases a supervised server, as holder "evaluator"
         envs_per_worker=1,
         total_steps=10**6,
-        max_wall_s=45.0,
+        max_wall_s=75.0,  # start-up and three episodes before the kill, on a busy machine
         logdir=str(tmp_path),
         run_name=run,
         progress=False,
