@@ -153,7 +153,7 @@ class EvalSchedule:
                     self.failure = self.failure or exc
         except RayActorError:
             # The call fails too when its weights came from a learner that died (Ray restarts
-            # it): then only this evaluation is lost. Only a dead evaluator stops evaluating.
+            # it): then only this evaluation is lost. A dead evaluator is replaced.
             if self._evaluator_alive():
                 log.warning("an evaluation was lost with its weights (learner restarted)")
                 return

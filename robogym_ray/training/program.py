@@ -194,9 +194,10 @@ class Program:
         )  # fmt: skip
 
     def replace_evaluator(self, generation: int, first_episode: int) -> None:
-        """Start a new evaluator in a dead one's place (its process or its node lost): it
-        leases the server the dead one held, released here, and goes on from the episodes
-        the dead one reported (its count and seeds; its window of rates starts empty)."""
+        """Start a new evaluator in a dead one's place (its process or its node lost): with
+        supervised servers it leases the one the dead one held, released here; it goes on
+        from the episodes the dead one reported (its count and seeds; its window of rates
+        starts empty)."""
         with suppress(RayError):  # one that only failed to answer in time is not left running
             ray.kill(self.evaluator)
         if self.supervision is not None:

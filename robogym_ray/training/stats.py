@@ -49,8 +49,8 @@ class RunStats:
     worker_failures: int = 0
     worker_replacements: int = 0
     evaluator_failures: int = 0
-    """Evaluator processes lost (each replaced by a new one); an evaluation lost with a dead
-    learner's weights is not one."""
+    """Evaluator processes lost (replaced as ``EvalSchedule._take`` says); an evaluation lost
+    with a dead learner's weights is not one."""
     transitions_sent: int = 0
     """Transitions the workers sent to the learner (its replay should have them all)."""
     abandoned_real_calls: int = 0
