@@ -2,10 +2,12 @@
 # Issue 42's GPU figures on a node with one GPU (docs/scaling.md says how they are read).
 #
 #   bash benchmarks/gpu_node.sh learner OUT   the learner alone on CUDA, batch 256 to 16,384:
-#                                             eager, then compiled (CUDA graphs), then bf16 with
-#                                             8 SGD steps per sample; about 7 minutes (an
-#                                             estimate), most of it compiling; a line of JSON
-#                                             per figure as it comes.
+#                                             eager, eager with 8 SGD steps per sample, the CPU
+#                                             learner with 1-14 threads on the node's cores,
+#                                             compiled (CUDA graphs), then bf16 with 8 SGD steps;
+#                                             at most 9 minutes (each part has its limit); a
+#                                             line of JSON per figure as it comes, errors in
+#                                             OUT/errors.log.
 #   bash benchmarks/gpu_node.sh train OUT     90-s navigation trainings with 2, 4, 8 and 14
 #                                             workers and the GPU learner, then 8 workers with
 #                                             the CPU learner (one thread per learner CPU);
@@ -61,17 +63,32 @@ export PYTHONPATH=$root${PYTHONPATH:+:$PYTHONPATH}
     nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv,noheader
   fi
   "$py" -c "import torch; print('torch', torch.__version__)"
-  echo "cores $(nproc)"
+  echo "cores $(nproc), $(grep -m1 'model name' /proc/cpuinfo)"
 } | tee "$out/device.txt"
 
-capacity() { "$py" "$root/benchmarks/learner_capacity.py" alone --device "$device" "$@"; }
+# One part of the learner's figures: its own time limit, its errors kept, and the parts after
+# it run whatever became of it (a device lease allows one try).
+part() {
+  local limit=$1 name=$2
+  shift 2
+  echo "== $name" | tee -a "$out/errors.log"
+  timeout "$limit" "$py" "$root/benchmarks/learner_capacity.py" alone "$@" \
+    2>>"$out/errors.log" | tee -a "$out/learner.jsonl" ||
+    echo "== $name: stopped, exit ${PIPESTATUS[0]}" | tee -a "$out/errors.log"
+}
 case "$part" in
 learner)
-  capacity --batches 256 1024 4096 16384 --seconds "$seconds" | tee "$out/learner.jsonl"
-  capacity --batches 256 1024 4096 16384 --seconds "$seconds" --warmup 30 \
-    --compile reduce-overhead | tee -a "$out/learner.jsonl"
-  capacity --batches 4096 16384 --seconds "$seconds" --warmup 30 --compile reduce-overhead \
-    --bf16 --sgd-steps 8 | tee -a "$out/learner.jsonl"
+  all=(--batches 256 1024 4096 16384 --seconds "$seconds")
+  part 75 eager --device "$device" "${all[@]}"
+  part 50 "eager, 8 SGD steps per sample" --device "$device" --batches 1024 4096 16384 \
+    --seconds "$seconds" --sgd-steps 8
+  # The CPU learner on this node's cores: its threads beyond the 2 cores of the machine
+  # where the model's CPU figures were measured.
+  part 80 "CPU threads" --device cpu --batches 1024 --threads 1 2 4 8 14 --seconds 4
+  part 60 "CPU threads, batch 4096" --device cpu --batches 4096 --threads 1 8 14 --seconds 4
+  part 180 compiled --device "$device" "${all[@]}" --warmup 30 --compile reduce-overhead
+  part 110 "compiled, bf16, 8 SGD steps" --device "$device" --batches 4096 16384 \
+    --seconds "$seconds" --warmup 30 --compile reduce-overhead --bf16 --sgd-steps 8
   ;;
 train)
   cpus=$(nproc)
