@@ -8,6 +8,10 @@
 #                                             at most 9 minutes (each part has its limit); a
 #                                             line of JSON per figure as it comes, errors in
 #                                             OUT/errors.log.
+#   bash benchmarks/gpu_node.sh versus OUT OTHER   the eager learner of this tree and of OTHER
+#                                             (e.g. `git archive COMMIT robogym_ray | tar -x
+#                                             -C .before`), alternating, twice; then this
+#                                             tree's 8-SGD-step, compiled and bf16 figures.
 #   bash benchmarks/gpu_node.sh train OUT     90-s navigation trainings with 2, 4, 8 and 14
 #                                             workers and the GPU learner, then 8 workers with
 #                                             the CPU learner (one thread per learner CPU);
@@ -76,9 +80,9 @@ part() {
     2>>"$out/errors.log" | tee -a "$out/learner.jsonl" ||
     echo "== $name: stopped, exit ${PIPESTATUS[0]}" | tee -a "$out/errors.log"
 }
+all=(--batches 256 1024 4096 16384 --seconds "$seconds")
 case "$part" in
 learner)
-  all=(--batches 256 1024 4096 16384 --seconds "$seconds")
   part 75 eager --device "$device" "${all[@]}"
   part 50 "eager, 8 SGD steps per sample" --device "$device" --batches 1024 4096 16384 \
     --seconds "$seconds" --sgd-steps 8
@@ -87,6 +91,21 @@ learner)
   part 80 "CPU threads" --device cpu --batches 1024 --threads 1 2 4 8 14 --seconds 4
   part 60 "CPU threads, batch 4096" --device cpu --batches 4096 --threads 1 8 14 --seconds 4
   part 180 compiled --device "$device" "${all[@]}" --warmup 30 --compile reduce-overhead
+  part 110 "compiled, bf16, 8 SGD steps" --device "$device" --batches 4096 16384 \
+    --seconds "$seconds" --warmup 30 --compile reduce-overhead --bf16 --sgd-steps 8
+  ;;
+versus)
+  # This tree's learner against another's on one machine, alternating (ratios side by side).
+  other=${3:?the other checkout: a folder holding the robogym_ray/ of another commit}
+  for round in 1 2; do
+    for tree in "$other" "$root"; do
+      PYTHONPATH=$tree:$PYTHONPATH part 60 "eager, $tree, round $round" --device "$device" \
+        "${all[@]}"
+    done
+  done
+  part 50 "eager, 8 SGD steps per sample" --device "$device" --batches 1024 4096 16384 \
+    --seconds "$seconds" --sgd-steps 8
+  part 120 compiled --device "$device" "${all[@]}" --warmup 30 --compile reduce-overhead
   part 110 "compiled, bf16, 8 SGD steps" --device "$device" --batches 4096 16384 \
     --seconds "$seconds" --warmup 30 --compile reduce-overhead --bf16 --sgd-steps 8
   ;;

@@ -6,7 +6,19 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from robogym_ray.learner.replay import MinTree, PrioritizedReplay, SumTree
+from robogym_ray.learner.replay import Backend, FlatTree, MinTree, PrioritizedReplay, SumTree
+
+# Every tree test runs on each layout a replay uses: the segment trees (host NumPy) and the flat
+# leaves of a replay on a torch device, here on the CPU, as CI has no GPU.
+LAYOUTS = ("tree", "flat-numpy", "flat-torch")
+
+
+def _tree(layout: str, kind: str, capacity: int) -> tuple[object, Backend]:
+    if layout == "tree":
+        return (SumTree if kind == "sum" else MinTree)(capacity), Backend()
+    backend = Backend() if layout == "flat-numpy" else Backend.torch_on("cpu")
+    reduce, neutral = ("sum", 0.0) if kind == "sum" else ("amin", np.inf)
+    return FlatTree(capacity, reduce, neutral, backend), backend
 
 
 def _batch(rewards: np.ndarray) -> dict[str, np.ndarray]:
@@ -20,34 +32,46 @@ def _batch(rewards: np.ndarray) -> dict[str, np.ndarray]:
     }
 
 
-def test_sum_tree_prefix_search_matches_searchsorted() -> None:
+@pytest.mark.parametrize("layout", LAYOUTS)
+def test_sum_tree_prefix_search_matches_searchsorted(layout: str) -> None:
     rng = np.random.default_rng(0)
-    tree = SumTree(37)  # not a power of two on purpose
+    tree, b = _tree(layout, "sum", 37)  # not a power of two on purpose
     values = rng.uniform(0.1, 5.0, 37)
-    tree.update(np.arange(37), values)
+    tree.update(np.arange(37), b.asarray(values))
     assert tree.root == pytest.approx(values.sum())
     mass = rng.uniform(0, values.sum(), 5000)
     expected = np.searchsorted(np.cumsum(values), mass, side="right")
-    np.testing.assert_array_equal(tree.find_prefix(mass), expected)
+    np.testing.assert_array_equal(b.to_numpy(tree.find_prefix(mass)), expected)
 
 
-def test_sum_tree_iid_descent_frequencies_pass_chi_square() -> None:
+@pytest.mark.parametrize("layout", LAYOUTS)
+def test_sum_tree_iid_descent_frequencies_pass_chi_square(layout: str) -> None:
     # I.i.d. uniform masses make the counts multinomial, so the chi-square p-value is exact.
     rng = np.random.default_rng(7)
     priorities = np.array([1.0, 2.0, 4.0, 8.0, 0.5, 3.0, 6.0, 10.0, 0.25, 5.0])
-    tree = SumTree(10)
-    tree.update(np.arange(10), priorities)
-    counts = np.bincount(tree.find_prefix(rng.uniform(0, tree.root, 50_000)), minlength=10)
+    tree, b = _tree(layout, "sum", 10)
+    tree.update(np.arange(10), b.asarray(priorities))
+    found = b.to_numpy(tree.find_prefix(rng.uniform(0, tree.root, 50_000)))
+    counts = np.bincount(found, minlength=10)
     assert stats.chisquare(counts, priorities / priorities.sum() * 50_000).pvalue > 1e-3
     assert stats.chisquare(counts, np.full(10, 5_000.0)).pvalue < 1e-12
 
 
-def test_min_tree_and_batched_updates_with_duplicates() -> None:
-    tree = MinTree(10)
-    tree.update(np.arange(10), np.arange(10, 20, dtype=float))
-    tree.update(np.array([3, 3, 7]), np.array([1.0, 5.0, 2.0]))  # last write wins for leaf 3
+@pytest.mark.parametrize("layout", LAYOUTS)
+def test_min_tree_and_batched_updates_with_duplicates(layout: str) -> None:
+    tree, b = _tree(layout, "min", 10)
+    tree.update(np.arange(10), b.asarray(np.arange(10.0, 20.0)))
+    # Last write wins for leaf 3 (on a CPU; a GPU's scatter leaves duplicates' order open).
+    tree.update(np.array([3, 3, 7]), b.asarray([1.0, 5.0, 2.0], "float64"))
     assert tree.root == 2.0
-    np.testing.assert_array_equal(tree.leaves(np.array([3, 7])), [5.0, 2.0])
+    np.testing.assert_array_equal(b.to_numpy(tree.leaves(np.array([3, 7]))), [5.0, 2.0])
+
+
+def test_a_replay_on_a_torch_device_keeps_flat_leaves_and_the_host_one_trees() -> None:
+    host = PrioritizedReplay(100, 2, 1, seed=0)
+    device = PrioritizedReplay(100, 2, 1, seed=0, backend=Backend.torch_on("cpu"))
+    assert isinstance(host.sum_tree, SumTree) and isinstance(host.min_tree, MinTree)
+    assert isinstance(device.sum_tree, FlatTree) and isinstance(device.min_tree, FlatTree)
 
 
 def _sample_counts(replay: PrioritizedReplay, draws: int) -> np.ndarray:
