@@ -12,6 +12,8 @@
 #                                             (e.g. `git archive COMMIT robogym_ray | tar -x
 #                                             -C .before`), alternating, twice; then this
 #                                             tree's 8-SGD-step, compiled and bf16 figures.
+#   bash benchmarks/gpu_node.sh profile OUT  the eager and compiled learner again, each figure
+#                                             with a profile: wall, kernel and host time.
 #   bash benchmarks/gpu_node.sh train OUT     90-s navigation trainings with 2, 4, 8 and 14
 #                                             workers and the GPU learner, then 8 workers with
 #                                             the CPU learner (one thread per learner CPU);
@@ -108,6 +110,12 @@ versus)
   part 120 compiled --device "$device" "${all[@]}" --warmup 30 --compile reduce-overhead
   part 110 "compiled, bf16, 8 SGD steps" --device "$device" --batches 4096 16384 \
     --seconds "$seconds" --warmup 30 --compile reduce-overhead --bf16 --sgd-steps 8
+  ;;
+profile)
+  # Where a step's time goes (wall, kernel and host time per step), eager and compiled.
+  part 50 "eager, profiled" --device "$device" --batches 1024 --seconds "$seconds" --profile 50
+  part 150 "compiled, profiled" --device "$device" "${all[@]}" --warmup 30 \
+    --compile reduce-overhead --profile 50
   ;;
 train)
   cpus=$(nproc)

@@ -79,12 +79,53 @@ def alone(batch: int, threads: int, seconds: float, args: argparse.Namespace) ->
     if learner.device.type == "cuda":
         torch.cuda.synchronize()
     elapsed = time.perf_counter() - start
+    profile = {}
+    if args.profile:
+        try:
+            profile = profiled(learner, args.profile, chunk)
+        except Exception as exc:  # noqa: BLE001 - a figure is kept when its profile fails
+            profile = {"profile_error": repr(exc)}
     return {
         "mode": "alone", "device": str(learner.device), "threads": threads, "batch": batch,
         **extra, "updates_per_s": round(steps / elapsed, 2),
         "samples_per_s": round(steps * batch / elapsed), "warmup_s": round(warmup_s, 1),
         "code": str(Path(sys.modules[D4PGLearner.__module__].__file__).parents[2]),
+        **profile,
     }  # fmt: skip
+
+
+def profiled(learner: Any, steps: int, chunk: int) -> dict:
+    """Where a step's time goes: wall time, the device's kernel time (its busy share on a GPU),
+    the host's operator calls per step (nested ones included) and those that take its time."""
+    import torch
+    from torch.autograd import DeviceType
+    from torch.profiler import ProfilerActivity, profile
+
+    cuda = learner.device.type == "cuda"
+    activities = [ProfilerActivity.CPU] + ([ProfilerActivity.CUDA] if cuda else [])
+    steps = max(chunk, steps - steps % chunk)
+    with profile(activities=activities) as prof:
+        start = time.perf_counter()
+        run_steps(learner, steps)
+        if cuda:
+            torch.cuda.synchronize()
+        wall = time.perf_counter() - start
+    # The device's own events are its kernels and copies, each with its interval (one stream).
+    kernel_us = sum(
+        e.time_range.elapsed_us() for e in prof.events() if e.device_type == DeviceType.CUDA
+    )
+    ops = [e for e in prof.key_averages() if e.key.startswith("aten::")]
+    top = sorted(ops, key=lambda e: e.self_cpu_time_total, reverse=True)[:8]
+    return {
+        "profile_steps": steps,
+        "wall_ms_per_step": round(wall * 1e3 / steps, 3),
+        "kernel_ms_per_step": round(kernel_us / 1e3 / steps, 3),
+        "aten_calls_per_step": round(sum(e.count for e in ops) / steps, 1),
+        "top_host_ops": [
+            [e.key, round(e.self_cpu_time_total / 1e3 / steps, 3), round(e.count / steps, 1)]
+            for e in top
+        ],
+    }
 
 
 def on_ray(batch: int, cpus: list[float], rounds: int, steps: int) -> list[dict]:
@@ -162,6 +203,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--bf16", action="store_true")
     parser.add_argument("--sgd-steps", type=int, default=0, help="sgd_steps_per_sample")
     parser.add_argument("--replay-device", default="")
+    parser.add_argument("--profile", type=int, default=0, help="alone: steps profiled after")
     args = parser.parse_args(argv)
     if args.mode == "alone":
         for batch in args.batches:
