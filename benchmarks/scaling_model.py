@@ -87,7 +87,10 @@ def predict(
     }
     bound = min(limits, key=limits.get)
     env_rate = limits[bound]
-    return {"env_steps_per_s": env_rate, "learner_steps_per_s": lam * env_rate, "bound": bound}
+    return {
+        "env_steps_per_s": env_rate, "learner_steps_per_s": lam * env_rate, "bound": bound,
+        "ceilings": {name: round(value, 1) for name, value in limits.items()},
+    }  # fmt: skip
 
 
 def check(paths: list[Path], costs: dict) -> list[dict]:
