@@ -6,9 +6,10 @@ steps per batch, no Python loop per sample).
 
 One implementation for two homes: NumPy arrays in host memory (the CPU learner's, as always), or
 torch tensors on the learner's device (``Backend.torch_on``), so a GPU learner samples, gathers and
-writes priorities back without a host round trip. The tree arithmetic is the same float64
-operations in the same order on both, and the uniform draws come from the same host NumPy
-generator, so for one seed and insert order both sample the same indices with the same weights.
+writes priorities back without a host round trip. There the priorities are flat leaves
+(:class:`FlatTree`: fewer, larger operations, as a GPU wants). The uniform draws come from the same
+host NumPy generator on both, so for one seed and insert order both sample the same indices with
+the same weights, up to float64 round-off at a boundary between two slots.
 """
 
 from __future__ import annotations
