@@ -7,10 +7,12 @@ machine's speed, so each case is driven here on the real program's actors direct
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import os
 import signal
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -29,17 +31,26 @@ pytestmark = [pytest.mark.ray, pytest.mark.slow, pytest.mark.usefixtures("ray_cl
 NAV = "RoboGymRay/ObstacleAvoidanceMir100Sim-v0"
 
 
+@contextlib.contextmanager
+def _program(tmp_path: Path, **cfg: object) -> Iterator[tuple[TrainConfig, Program, RunLogger]]:
+    """A one-worker navigation run's program and logger, shut down and closed after."""
+    config = TrainConfig(
+        task=NAV, workers=1, total_steps=1000, logdir=str(tmp_path), progress=False, **cfg
+    )
+    preset = resolve_task(config.task)
+    program = Program(config, d4pg_for(preset, None), preset, EmulationConfig())
+    logger = RunLogger(program.run_dir, total=config.total_steps, progress=False)
+    try:
+        yield config, program, logger
+    finally:
+        logger.close()
+        program.shutdown()
+
+
 def test_a_run_whose_evaluator_finished_nothing_evaluates_its_final_policy(
     tmp_path: Path,
 ) -> None:
-    cfg = TrainConfig(
-        task=NAV, workers=1, total_steps=1000, logdir=str(tmp_path), run_name="final",
-        progress=False, final_eval_episodes=3,
-    )  # fmt: skip
-    preset = resolve_task(cfg.task)
-    program = Program(cfg, d4pg_for(preset, None), preset, EmulationConfig())
-    logger = RunLogger(program.run_dir, total=cfg.total_steps, progress=False)
-    try:
+    with _program(tmp_path, run_name="final", final_eval_episodes=3) as (_, program, logger):
         run_stats = RunStats()
         schedule = EvalSchedule(program, run_stats)
         # The end of a run whose evaluator has no result yet and no call in flight.
@@ -58,9 +69,6 @@ def test_a_run_whose_evaluator_finished_nothing_evaluates_its_final_policy(
         assert run_stats.eval["eval_final_episodes"] == 0
         assert run_stats.eval["eval_episodes"] == 4
         assert len(run_stats.eval_history) == 2
-    finally:
-        logger.close()
-        program.shutdown()
     assert ray.is_initialized()
 
 
@@ -72,14 +80,7 @@ def test_a_best_policy_that_cannot_be_written_ends_the_run_and_keeps_the_last_re
     still names no file that was not written."""
     from robogym_ray.errors import DiskWriteError
 
-    cfg = TrainConfig(
-        task=NAV, workers=1, total_steps=1000, logdir=str(tmp_path), run_name="best",
-        progress=False, select_episodes=2,
-    )  # fmt: skip
-    preset = resolve_task(cfg.task)
-    program = Program(cfg, d4pg_for(preset, None), preset, EmulationConfig())
-    logger = RunLogger(program.run_dir, total=cfg.total_steps, progress=False)
-    try:
+    with _program(tmp_path, run_name="best", select_episodes=2) as (_, program, logger):
         blocker = tmp_path / "not-a-directory"
         blocker.write_text("")
         program.selector.path = blocker / "policy-best.pt"
@@ -89,9 +90,6 @@ def test_a_best_policy_that_cannot_be_written_ends_the_run_and_keeps_the_last_re
         assert str(schedule.failure).startswith(f"cannot write policy file {blocker}/")
         assert program.selector.record == {} and program.selector.best is None
         assert blocker.read_text() == ""
-    finally:
-        logger.close()
-        program.shutdown()
 
 
 def test_the_final_evaluation_needs_at_least_one_episode() -> None:
@@ -104,14 +102,7 @@ def test_the_final_evaluation_needs_at_least_one_episode() -> None:
 def test_a_replacement_evaluator_no_node_can_place_does_not_hold_up_the_end(
     tmp_path: Path,
 ) -> None:
-    cfg = TrainConfig(
-        task=NAV, workers=1, total_steps=1000, logdir=str(tmp_path), run_name="unplaced",
-        progress=False, worker_deadline_s=3.0,
-    )  # fmt: skip
-    preset = resolve_task(cfg.task)
-    program = Program(cfg, d4pg_for(preset, None), preset, EmulationConfig())
-    logger = RunLogger(program.run_dir, total=cfg.total_steps, progress=False)
-    try:
+    with _program(tmp_path, run_name="unplaced", worker_deadline_s=3.0) as (cfg, program, logger):
         run_stats = RunStats()
         schedule = EvalSchedule(program, run_stats)
         schedule.final(None, logger, wall_s=1.0)  # one evaluation, then the evaluator is lost
@@ -127,6 +118,3 @@ def test_a_replacement_evaluator_no_node_can_place_does_not_hold_up_the_end(
         assert time.monotonic() - started < cfg.worker_deadline_s + 10
         assert program.evaluator is None
         assert run_stats.eval["eval_episodes"] == cfg.final_eval_episodes
-    finally:
-        logger.close()
-        program.shutdown()
