@@ -110,16 +110,19 @@ def profiled(learner: Any, steps: int, chunk: int) -> dict:
         if cuda:
             torch.cuda.synchronize()
         wall = time.perf_counter() - start
-    # The device's own events are its kernels and copies, each with its interval (one stream).
+    # The device's own events are its kernels, copies and fills, each with its interval (one
+    # stream); annotated ranges are device events too, spanning kernels already counted.
     kernel_us = sum(
-        e.time_range.elapsed_us() for e in prof.events() if e.device_type == DeviceType.CUDA
+        e.time_range.elapsed_us()
+        for e in prof.events()
+        if e.device_type == DeviceType.CUDA and not getattr(e, "is_user_annotation", False)
     )
     ops = [e for e in prof.key_averages() if e.key.startswith("aten::")]
     top = sorted(ops, key=lambda e: e.self_cpu_time_total, reverse=True)[:8]
     return {
         "profile_steps": steps,
         "wall_ms_per_step": round(wall * 1e3 / steps, 3),
-        "kernel_ms_per_step": round(kernel_us / 1e3 / steps, 3),
+        **({"kernel_ms_per_step": round(kernel_us / 1e3 / steps, 3)} if cuda else {}),
         "aten_calls_per_step": round(sum(e.count for e in ops) / steps, 1),
         "top_host_ops": [
             [e.key, round(e.self_cpu_time_total / 1e3 / steps, 3), round(e.count / steps, 1)]

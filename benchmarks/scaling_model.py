@@ -89,7 +89,8 @@ def predict(
     env_rate = limits[bound]
     return {
         "env_steps_per_s": env_rate, "learner_steps_per_s": lam * env_rate, "bound": bound,
-        "ceilings": {name: round(value, 1) for name, value in limits.items()},
+        # None where nothing bounds (JSON has no infinity).
+        "ceilings": {k: round(v, 1) if v != float("inf") else None for k, v in limits.items()},
     }  # fmt: skip
 
 

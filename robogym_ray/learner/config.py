@@ -105,9 +105,10 @@ class D4PGConfig:
     """torch intra-op threads for the learner; 0 = the CPUs Ray gives the learner actor (its
     ``--learner-cpus``, at least 1), or torch's default outside Ray."""
     replay_device: str = "auto"
-    """Where the replay and its priority trees live: 'host' (NumPy in memory), 'learner' (torch
-    tensors on the learner's device: sampling without a host round trip), or 'auto' (the device
-    when it is not the CPU). Both sample the same transitions for one seed."""
+    """Where the replay and its priorities live: 'host' (NumPy in memory, segment trees),
+    'learner' (torch tensors on the learner's device, flat: sampling without a host round trip),
+    or 'auto' (the device when it is not the CPU). Both sample the same transitions for one
+    seed, up to float64 round-off at a boundary between two slots."""
     sgd_steps_per_sample: int = 1
     """Learner steps taken from one sampled block of this many batches (Acme's
     ``num_sgd_steps_per_step``); priorities written in a block apply from the next one. 1 samples

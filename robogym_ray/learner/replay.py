@@ -1,15 +1,18 @@
-"""Proportional prioritized replay (Schaul et al. 2016; Ape-X) with vectorized segment trees.
+"""Proportional prioritized replay (Schaul et al. 2016; Ape-X): segment trees on the host, flat
+leaves on a torch device.
 
-All tree operations work on whole batches: updates propagate level by level with NumPy fancy
-indexing, and sampling descends the tree for every sample at once (``log2(capacity)`` vector
-steps per batch, no Python loop per sample).
+All priority operations work on whole batches. In host memory, updates propagate level by level
+through a sum and a min tree with NumPy fancy indexing, and sampling descends the tree for every
+sample at once (``log2(capacity)`` vector steps per batch, no Python loop per sample).
 
 One implementation for two homes: NumPy arrays in host memory (the CPU learner's, as always), or
 torch tensors on the learner's device (``Backend.torch_on``), so a GPU learner samples, gathers and
 writes priorities back without a host round trip. There the priorities are flat leaves
 (:class:`FlatTree`: fewer, larger operations, as a GPU wants). The uniform draws come from the same
 host NumPy generator on both, so for one seed and insert order both sample the same indices with
-the same weights, up to float64 round-off at a boundary between two slots.
+the same weights, up to float64 round-off: the totals and prefix sums add in another order than
+the trees', which can move a draw within round-off of a boundary to the neighbouring slot and
+change a weight's last bits.
 """
 
 from __future__ import annotations
@@ -60,8 +63,9 @@ class Backend:
         if self.on_host:
             return np.asarray(value, dtype=dtype)
         t = self.torch
-        out = t.as_tensor(value, device=self.device)
-        return out.to(getattr(t, dtype)) if dtype is not None else out
+        # The dtype goes in with the value: a Python float made a tensor first is float32, and
+        # a restored max priority lost its last digits that way.
+        return t.as_tensor(value, dtype=getattr(t, dtype) if dtype else None, device=self.device)
 
     def upload(self, array: np.ndarray) -> Any:
         """A host array here. To a GPU through pinned memory without waiting: a plain copy from
@@ -143,8 +147,8 @@ class MinTree(SegmentTree):
 class FlatTree:
     """A tree's interface over its leaves alone: the layout of a replay on a torch device.
 
-    A tree update costs five small operations per level (17 levels at 100,000 slots) and a
-    descent three, each a kernel launch on a GPU; there the launches, not the arithmetic, set
+    A tree update costs about eight small operations per level (17 levels at 100,000 slots) and
+    a descent seven, each a kernel launch on a GPU; there the launches, not the arithmetic, set
     the step's time (an H100 made ~80 learner steps/s at every batch from 256 to 16,384, with
     the losses compiled too: docs/benchmarks.md). Here an update is one scatter, the root one
     reduction and the prefix search a cumulative sum and a binary search: O(capacity) work in

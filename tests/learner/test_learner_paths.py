@@ -1,6 +1,7 @@
 """The learner's one code path for every device (issue 42): ``run`` equals the step the learner
-took before it (written out below), a replay on the learner's device samples exactly what the
-host replay does, block sampling, bf16 and torch.compile run on the CPU the tests have."""
+took before it (written out below), a replay on the learner's device samples what the host
+replay does (its flat prefix sums may differ from the trees' in the last bit: for these seeds
+they do not), block sampling, bf16 and torch.compile run on the CPU the tests have."""
 
 from __future__ import annotations
 

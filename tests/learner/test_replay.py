@@ -9,8 +9,19 @@ from scipy import stats
 from robogym_ray.learner.replay import Backend, FlatTree, MinTree, PrioritizedReplay, SumTree
 
 # Every tree test runs on each layout a replay uses: the segment trees (host NumPy) and the flat
-# leaves of a replay on a torch device, here on the CPU, as CI has no GPU.
+# leaves of a replay on a torch device, here on the CPU, as CI has no GPU; every replay test on
+# both homes.
 LAYOUTS = ("tree", "flat-numpy", "flat-torch")
+HOMES = ("host", "device")
+
+
+def _replay(home: str, capacity: int, **kw: object) -> PrioritizedReplay:
+    backend = None if home == "host" else Backend.torch_on("cpu")
+    return PrioritizedReplay(capacity, 2, 1, backend=backend, **kw)
+
+
+def _np(replay: PrioritizedReplay, value: object) -> np.ndarray:
+    return np.asarray(replay.backend.to_numpy(value))
 
 
 def _tree(layout: str, kind: str, capacity: int) -> tuple[object, Backend]:
@@ -61,10 +72,21 @@ def test_sum_tree_iid_descent_frequencies_pass_chi_square(layout: str) -> None:
 def test_min_tree_and_batched_updates_with_duplicates(layout: str) -> None:
     tree, b = _tree(layout, "min", 10)
     tree.update(np.arange(10), b.asarray(np.arange(10.0, 20.0)))
-    # Last write wins for leaf 3 (on a CPU; a GPU's scatter leaves duplicates' order open).
+    # Last write wins for leaf 3 here: three indices on a CPU. Torch leaves duplicates' order
+    # open on a GPU and on a CPU's parallel scatter (the learner writes equal values for them).
     tree.update(np.array([3, 3, 7]), b.asarray([1.0, 5.0, 2.0], "float64"))
     assert tree.root == 2.0
     np.testing.assert_array_equal(b.to_numpy(tree.leaves(np.array([3, 7]))), [5.0, 2.0])
+
+
+@pytest.mark.parametrize("layout", LAYOUTS)
+def test_masses_on_a_boundary_go_right_and_empty_leaves_are_never_found(layout: str) -> None:
+    """A mass equal to a prefix sum belongs to the next slot with mass (the interval is
+    ``[sum(p[:i]), sum(p[:i+1]))``), so a leaf of priority 0 is never sampled."""
+    tree, b = _tree(layout, "sum", 6)
+    tree.update(np.arange(6), b.asarray([1.0, 0.0, 2.0, 0.0, 0.0, 1.0], "float64"))
+    found = b.to_numpy(tree.find_prefix(np.array([0.0, 0.5, 1.0, 2.999, 3.0, 3.5])))
+    np.testing.assert_array_equal(found, [0, 0, 2, 2, 5, 5])
 
 
 def test_a_replay_on_a_torch_device_keeps_flat_leaves_and_the_host_one_trees() -> None:
@@ -78,13 +100,14 @@ def _sample_counts(replay: PrioritizedReplay, draws: int) -> np.ndarray:
     counts = np.zeros(replay.size, np.int64)
     for _ in range(draws // 256):
         _, idx, _ = replay.sample(256, beta=0.4)
-        counts += np.bincount(idx, minlength=replay.size)
+        counts += np.bincount(_np(replay, idx), minlength=replay.size)
     return counts
 
 
-def test_sampling_frequencies_follow_priorities_to_the_alpha() -> None:
+@pytest.mark.parametrize("home", HOMES)
+def test_sampling_frequencies_follow_priorities_to_the_alpha(home: str) -> None:
     priorities = np.array([1.0, 2.0, 4.0, 8.0, 0.5, 3.0, 6.0, 10.0, 0.25, 5.0])
-    replay = PrioritizedReplay(16, 2, 1, alpha=0.6, eps=0.0, seed=123)
+    replay = _replay(home, 16, alpha=0.6, eps=0.0, seed=123)
     replay.add(_batch(np.arange(10.0)), priorities)
     counts = _sample_counts(replay, 256 * 400)
     expected_p = priorities**0.6 / np.sum(priorities**0.6)
@@ -98,48 +121,54 @@ def test_sampling_frequencies_follow_priorities_to_the_alpha() -> None:
     assert stats.chisquare(counts, raw).pvalue < 1e-12
 
 
-def test_importance_weights_match_hand_computation() -> None:
+@pytest.mark.parametrize("home", HOMES)
+def test_importance_weights_match_hand_computation(home: str) -> None:
     priorities = np.array([1.0, 2.0, 3.0, 4.0])
     alpha, beta = 0.5, 0.4
-    replay = PrioritizedReplay(4, 2, 1, alpha=alpha, eps=0.0, seed=0)
+    replay = _replay(home, 4, alpha=alpha, eps=0.0, seed=0)
     replay.add(_batch(np.arange(4.0)), priorities)
     _, idx, weights = replay.sample(64, beta)
+    idx, weights = _np(replay, idx), _np(replay, weights)
     probs = priorities**alpha / np.sum(priorities**alpha)
     w_all = (4 * probs) ** (-beta)
     np.testing.assert_allclose(weights, w_all[idx] / w_all.max(), rtol=1e-6)
     assert weights.max() <= 1.0 + 1e-6
 
 
-def test_priority_updates_change_sampling_and_new_data_gets_running_max() -> None:
-    replay = PrioritizedReplay(8, 2, 1, alpha=1.0, eps=0.0, seed=0)
+@pytest.mark.parametrize("home", HOMES)
+def test_priority_updates_change_sampling_and_new_data_gets_running_max(home: str) -> None:
+    replay = _replay(home, 8, alpha=1.0, eps=0.0, seed=0)
     replay.add(_batch(np.arange(4.0)), np.ones(4))
     replay.update_priorities(np.array([2]), np.array([100.0]))
     counts = _sample_counts(replay, 256 * 20)
     assert counts[2] > 0.9 * counts.sum()
     replay.add(_batch(np.array([9.0])))  # no priority given: running max (100)
-    assert replay.sum_tree.leaves(np.array([4]))[0] == pytest.approx(100.0)
+    assert _np(replay, replay.sum_tree.leaves(np.array([4])))[0] == pytest.approx(100.0)
 
 
-def test_fifo_eviction_overwrites_oldest_first() -> None:
-    replay = PrioritizedReplay(5, 2, 1, seed=0)
+@pytest.mark.parametrize("home", HOMES)
+def test_fifo_eviction_overwrites_oldest_first(home: str) -> None:
+    replay = _replay(home, 5, seed=0)
     replay.add(_batch(np.arange(3.0)))
     replay.add(_batch(np.arange(3.0, 7.0)))
     assert len(replay) == 5 and replay.cursor == 2 and replay.total_added == 7
-    np.testing.assert_array_equal(replay.storage["reward"], [5, 6, 2, 3, 4])
+    rewards = replay.storage["reward"]
+    np.testing.assert_array_equal(_np(replay, rewards), [5, 6, 2, 3, 4])
     # A batch larger than capacity keeps only its newest items.
     replay.add(_batch(np.arange(10.0, 18.0)))
-    assert sorted(replay.storage["reward"].tolist()) == [13, 14, 15, 16, 17]
+    assert sorted(_np(replay, rewards).tolist()) == [13, 14, 15, 16, 17]
     batch, idx, _ = replay.sample(32, 1.0)
-    np.testing.assert_array_equal(batch["reward"], replay.storage["reward"][idx])
+    np.testing.assert_array_equal(_np(replay, batch["reward"]), _np(replay, rewards[idx]))
 
 
-def test_state_dict_round_trip_reproduces_samples() -> None:
-    replay = PrioritizedReplay(6, 2, 1, seed=3)
+@pytest.mark.parametrize("home", HOMES)
+def test_state_dict_round_trip_reproduces_samples(home: str) -> None:
+    replay = _replay(home, 6, seed=3)
     replay.add(_batch(np.arange(8.0)), np.arange(1.0, 9.0))
-    clone = PrioritizedReplay(6, 2, 1, seed=99)
+    clone = _replay(home, 6, seed=99)
     clone.load_state_dict(replay.state_dict())
     a, ia, wa = replay.sample(16, 0.7)
     b, ib, wb = clone.sample(16, 0.7)
-    np.testing.assert_array_equal(ia, ib)
-    np.testing.assert_allclose(wa, wb)
+    np.testing.assert_array_equal(_np(replay, ia), _np(clone, ib))
+    np.testing.assert_allclose(_np(replay, wa), _np(clone, wb))
     assert clone.cursor == replay.cursor and clone.max_priority == replay.max_priority
