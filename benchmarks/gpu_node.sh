@@ -2,8 +2,8 @@
 # Issue 42's GPU figures on a node with one GPU (docs/scaling.md says how they are read).
 #
 #   bash benchmarks/gpu_node.sh learner OUT   the learner alone on CUDA, batch 256 to 16,384:
-#                                             eager, eager with 8 SGD steps per sample, the CPU
-#                                             learner with 1-14 threads on the node's cores,
+#                                             eager, the CPU learner with 1-14 threads on the
+#                                             node's cores, eager with 8 SGD steps per sample,
 #                                             compiled (CUDA graphs), then bf16 with 8 SGD steps;
 #                                             at most 9 minutes (each part has its limit); a
 #                                             line of JSON per figure as it comes, errors in
@@ -83,18 +83,22 @@ part() {
     echo "== $name: stopped, exit ${PIPESTATUS[0]}" | tee -a "$out/errors.log"
 }
 all=(--batches 256 1024 4096 16384 --seconds "$seconds")
+# The GPU path's switches, one part each: blocks of SGD steps, compiled, compiled with bf16.
+switches() {
+  part 50 "eager, 8 SGD steps per sample" --device "$device" --batches 1024 4096 16384 \
+    --seconds "$seconds" --sgd-steps 8
+  part 180 compiled --device "$device" "${all[@]}" --warmup 30 --compile reduce-overhead
+  part 110 "compiled, bf16, 8 SGD steps" --device "$device" --batches 4096 16384 \
+    --seconds "$seconds" --warmup 30 --compile reduce-overhead --bf16 --sgd-steps 8
+}
 case "$part" in
 learner)
   part 75 eager --device "$device" "${all[@]}"
-  part 50 "eager, 8 SGD steps per sample" --device "$device" --batches 1024 4096 16384 \
-    --seconds "$seconds" --sgd-steps 8
   # The CPU learner on this node's cores: its threads beyond the 2 cores of the machine
   # where the model's CPU figures were measured.
   part 80 "CPU threads" --device cpu --batches 1024 --threads 1 2 4 8 14 --seconds 4
   part 60 "CPU threads, batch 4096" --device cpu --batches 4096 --threads 1 8 14 --seconds 4
-  part 180 compiled --device "$device" "${all[@]}" --warmup 30 --compile reduce-overhead
-  part 110 "compiled, bf16, 8 SGD steps" --device "$device" --batches 4096 16384 \
-    --seconds "$seconds" --warmup 30 --compile reduce-overhead --bf16 --sgd-steps 8
+  switches
   ;;
 versus)
   # This tree's learner against another's on one machine, alternating (ratios side by side).
@@ -105,11 +109,7 @@ versus)
         "${all[@]}"
     done
   done
-  part 50 "eager, 8 SGD steps per sample" --device "$device" --batches 1024 4096 16384 \
-    --seconds "$seconds" --sgd-steps 8
-  part 120 compiled --device "$device" "${all[@]}" --warmup 30 --compile reduce-overhead
-  part 110 "compiled, bf16, 8 SGD steps" --device "$device" --batches 4096 16384 \
-    --seconds "$seconds" --warmup 30 --compile reduce-overhead --bf16 --sgd-steps 8
+  switches
   ;;
 profile)
   # Where a step's time goes (wall, kernel and host time per step), eager and compiled.

@@ -10,7 +10,7 @@ from contextlib import suppress
 from typing import Any
 
 import ray
-from ray.exceptions import RayActorError, RayError
+from ray.exceptions import RayActorError
 
 from robogym_ray.errors import DiskWriteError
 from robogym_ray.experience.evaluator import VIDEO_KEY
@@ -119,7 +119,7 @@ class EvalSchedule:
         log.warning("the evaluator that replaced a lost one did not start in %g s (no node "
                     "left to place it?); the run ends without its evaluation",
                     self.cfg.worker_deadline_s)  # fmt: skip
-        self._give_up()
+        self.p.drop_evaluator()
         return False
 
     def _replacement_started(self) -> bool:
@@ -130,11 +130,6 @@ class EvalSchedule:
                 ray.get(ping)
                 self.replacement_ping = None
         return self.replacement_ping is None
-
-    def _give_up(self) -> None:
-        with suppress(RayError):
-            ray.kill(self.p.evaluator)
-        self.p.evaluator = None
 
     def _take(self, ref: Any, logger: Any, wall_s: float, replace: bool = True) -> None:
         """Record a call's result (blocks until it is done): rates, history, GIF, snapshot.
@@ -161,7 +156,7 @@ class EvalSchedule:
             if not self._replacement_started():  # it cannot start: another would not either
                 log.warning("the evaluator that replaced a lost one failed before it started; "
                             "evaluation stops")  # fmt: skip
-                self._give_up()
+                self.p.drop_evaluator()
             elif replace:
                 # Its process or its node is gone. It held nothing a new one cannot rebuild
                 # but its window of rates, which starts again; its count and seeds go on.

@@ -198,11 +198,16 @@ class Program:
         supervised servers it leases the one the dead one held, released here; it goes on
         from the episodes the dead one reported (its count and seeds; its window of rates
         starts empty)."""
-        with suppress(RayError):  # one that only failed to answer in time is not left running
-            ray.kill(self.evaluator)
+        self.drop_evaluator()  # one that only failed to answer in time is not left running
         if self.supervision is not None:
             self.supervision.release_holder("evaluator")
         self.evaluator = self._evaluator_actor(generation, first_episode)
+
+    def drop_evaluator(self) -> None:
+        """Kill the evaluator (gone already, or not answering) and run on without one."""
+        with suppress(RayError):
+            ray.kill(self.evaluator)
+        self.evaluator = None
 
     def replace_worker(self, slot: WorkerSlot) -> bool:
         """Start a new rollout worker in a simulated worker's place: it leases the server the
