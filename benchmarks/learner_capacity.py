@@ -9,6 +9,9 @@ Navigation's shapes and recipe networks: 20 observations, 2 actions, (400, 300) 
     RAY_AUTH_MODE=disabled python benchmarks/learner_capacity.py ray --batch 1024 --cpus 1 2
         the learner actor on a local Ray given each number of CPUs (its threads follow them),
         rounds alternating;
+    python benchmarks/learner_capacity.py alone --batches 1024 --threads 1 2 --load 0.5
+        the same beside one process that keeps a core busy half the time (a rollout worker's
+        share of the cores), to measure what a thread the cores cannot hold costs;
     python benchmarks/learner_capacity.py versus /tmp/before --batch 256 --threads 1
         this tree against another checkout (``git worktree add /tmp/before COMMIT``): the
         ``alone`` mode in fresh processes, alternating, the ratio per pair.
@@ -27,12 +30,16 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 from learner_throughput import random_batch  # benchmarks/ is this script's folder
 
 OBS, ACT, FILL = 20, 2, 100_000
+LOAD_PERIOD_S = 0.004
+"""A load's busy-then-idle cycle: a few navigation env steps and a call, as a worker runs."""
 
 
 def nav_config(batch: int, **kw: Any) -> Any:
@@ -54,6 +61,29 @@ def run_steps(learner: Any, steps: int) -> None:
             learner.step()
 
 
+@contextmanager
+def cpu_load(duty: float) -> Iterator[None]:
+    """One process beside the learner, busy ``duty`` of every period and asleep the rest: what
+    a rollout worker does to the cores the learner's threads run on. The OS places both."""
+    if duty <= 0:
+        yield
+        return
+    busy, idle = duty * LOAD_PERIOD_S, (1.0 - duty) * LOAD_PERIOD_S
+    code = (
+        "import time\n"
+        "while True:\n"
+        "    t = time.perf_counter()\n"
+        f"    while time.perf_counter() - t < {busy}: pass\n"
+        f"    time.sleep({idle})\n"
+    )
+    proc = subprocess.Popen([sys.executable, "-c", code])
+    try:
+        yield
+    finally:
+        proc.kill()  # by its PID, the only process this started
+        proc.wait()
+
+
 def alone(batch: int, threads: int, seconds: float, args: argparse.Namespace) -> dict:
     import torch
 
@@ -68,17 +98,18 @@ def alone(batch: int, threads: int, seconds: float, args: argparse.Namespace) ->
     torch.set_num_threads(threads)
     learner = D4PGLearner(nav_config(batch, device=args.device, **extra), OBS, ACT, seed=0)
     learner.add(random_batch(FILL, OBS, ACT))
-    start = time.perf_counter()
-    run_steps(learner, args.warmup)
-    warmup_s = time.perf_counter() - start
-    steps, start = 0, time.perf_counter()
-    chunk = max(1, args.sgd_steps or 1)
-    while time.perf_counter() - start < seconds:
-        run_steps(learner, chunk)
-        steps += chunk
-    if learner.device.type == "cuda":
-        torch.cuda.synchronize()
-    elapsed = time.perf_counter() - start
+    with cpu_load(args.load):
+        start = time.perf_counter()
+        run_steps(learner, args.warmup)
+        warmup_s = time.perf_counter() - start
+        steps, start = 0, time.perf_counter()
+        chunk = max(1, args.sgd_steps or 1)
+        while time.perf_counter() - start < seconds:
+            run_steps(learner, chunk)
+            steps += chunk
+        if learner.device.type == "cuda":
+            torch.cuda.synchronize()
+        elapsed = time.perf_counter() - start
     profile = {}
     if args.profile:
         try:
@@ -87,7 +118,8 @@ def alone(batch: int, threads: int, seconds: float, args: argparse.Namespace) ->
             profile = {"profile_error": repr(exc)}
     return {
         "mode": "alone", "device": str(learner.device), "threads": threads, "batch": batch,
-        **extra, "updates_per_s": round(steps / elapsed, 2),
+        **extra, **({"load": args.load} if args.load else {}),
+        "updates_per_s": round(steps / elapsed, 2),
         "samples_per_s": round(steps * batch / elapsed), "warmup_s": round(warmup_s, 1),
         "code": str(Path(sys.modules[D4PGLearner.__module__].__file__).parents[2]),
         **profile,
@@ -206,6 +238,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--bf16", action="store_true")
     parser.add_argument("--sgd-steps", type=int, default=0, help="sgd_steps_per_sample")
     parser.add_argument("--replay-device", default="")
+    parser.add_argument(
+        "--load",
+        type=float,
+        default=0.0,
+        help="alone: a process beside, busy this share of one core",
+    )
     parser.add_argument("--profile", type=int, default=0, help="alone: steps profiled after")
     args = parser.parse_args(argv)
     if args.mode == "alone":

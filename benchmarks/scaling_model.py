@@ -17,10 +17,12 @@ learner steps per env step, env steps/s is the smallest of
 
 and learner steps/s is ``lam`` times it. Where the learner shares its cores with the workers
 (fewer cores than workers + learner threads + 1), a CPU learner step takes
-``1 / learner_share_when_shared`` times its time alone: measured once, on the recipe's run
-(2 workers x 4 envs, batch 256), and checked on the others; and it counts no more threads than
-the cores the workers leave (at least one), a rule added after the one run that broke it and
-then checked on runs predicted before they ran. Costs are this machine's, measured
+``1 / learner_share_when_shared`` times its time alone (measured once, on the recipe's run: 2
+workers x 4 envs, batch 256), and longer still where its threads do not all find a free core:
+a thread a worker displaces holds up the others at every parallel operation. That second term
+(``contention``) is measured apart from any training - the learner alone beside a process that
+keeps a core busy a given share of the time - and replaced the rule that counted no thread
+beyond the cores the workers leave. Costs are this machine's, measured
 (``scaling_costs.json``).
 """
 
@@ -31,6 +33,8 @@ import json
 import statistics
 from collections import defaultdict
 from pathlib import Path
+
+import numpy as np
 
 COSTS_FILE = Path(__file__).with_name("scaling_costs.json")
 """The measured costs the model reads (written by hand from the benchmarks' figures)."""
@@ -56,6 +60,18 @@ def learner_seconds(costs: dict, batch: int, threads: int, gpu: bool) -> float:
     return t1 + (t1 - t0) * (batch - b1) / (b1 - b0)  # beyond the last: the last slope
 
 
+def contention(costs: dict, rest_cpu: float, cores: float, threads: int) -> float:
+    """How much of its speed a CPU learner with ``threads`` threads keeps where the rest of the
+    run uses ``rest_cpu`` cores: 1 where the cores its threads leave hold the rest. Measured on
+    two cores, the learner alone with 2 threads beside a process busy a share of one core
+    (``learner_capacity.py alone --load``): its rate there over its rate with no load,
+    interpolated, the ends held beyond. With other counts it is read at the same load per
+    thread - the rest's CPU beyond the cores the threads leave - which no run here checked."""
+    table = costs["learner_contended"]
+    load = max(0.0, rest_cpu - (cores - threads)) * table["threads"] / threads
+    return float(np.interp(load, table["load"], table["rate"]) / table["rate"][0])
+
+
 def predict(
     costs: dict, *, task: str, cores: float, workers: int, envs: int, batch: int,
     samples_per_insert: float, threads: int = 1, gpu: bool = False,
@@ -64,27 +80,38 @@ def predict(
     other = costs["other_cpu_s"]
     lam = samples_per_insert / batch
     shared = not gpu and cores < workers + threads + 1
-    if shared:
-        # A thread beyond the cores the workers leave waits on them at every parallel op's
-        # barrier: it adds nothing (measured: it costs; this term was added after that run).
-        threads = max(1, min(threads, int(cores - workers)))
-    step_s = learner_seconds(costs, batch, threads, gpu)
+    step_alone = learner_seconds(costs, batch, threads, gpu)
     if shared:
         # Cores shared with the workers: a learner step in a run took longer than alone.
-        step_s /= costs["learner_share_when_shared"]
-    learner_cpu = 0.0 if gpu else step_s * threads
+        step_alone /= costs["learner_share_when_shared"]
     # A worker waits on its calls: one free-env worker's rate gives the per-step cost of that
     # (its call round trips and its share of the driver), beyond its env's CPU.
     solo = costs["data_path_env_steps_per_s"][f"1x{envs}"]
     call_s = 1.0 / solo - costs["env_cpu_s"]["free"][str(envs)]
     learner_host = 1.0 if gpu else 0.0  # a GPU learner's host thread still holds a core
-    limits = {
-        "cores": (cores - learner_host) / (env_cpu + other + lam * learner_cpu),
-        "learner": float("inf") if lam == 0 else 1.0 / (lam * step_s),
-        "workers": workers / (env_cpu + call_s),
-        # Measured on this machine only (the free env's runs), for the shapes it ran.
-        "data path": costs["data_path_env_steps_per_s"].get(f"{workers}x{envs}", float("inf")),
-    }
+
+    def ceilings(step_s: float) -> dict[str, float]:
+        learner_cpu = 0.0 if gpu else step_s * threads
+        return {
+            "cores": (cores - learner_host) / (env_cpu + other + lam * learner_cpu),
+            "learner": float("inf") if lam == 0 else 1.0 / (lam * step_s),
+            "workers": workers / (env_cpu + call_s),
+            # Measured on this machine only (the free env's runs), for the shapes it ran.
+            "data path": costs["data_path_env_steps_per_s"].get(f"{workers}x{envs}", float("inf")),
+        }
+
+    step_s = step_alone
+    limits = ceilings(step_s)
+    if shared:
+        # A thread that a worker displaces holds up the others at every parallel operation
+        # until it runs again: the busier the cores, the slower the step. The rest's CPU is its
+        # cost per env step at the rate the run reaches, which the step's time sets in turn:
+        # iterated to its fixed point (a slower step lowers the load, so it settles).
+        for _ in range(50):
+            rest_cpu = min(limits.values()) * (env_cpu + other)
+            kept = contention(costs, rest_cpu, cores, threads)
+            step_s = 0.5 * step_s + 0.5 * step_alone / kept
+            limits = ceilings(step_s)
     bound = min(limits, key=limits.get)
     env_rate = limits[bound]
     return {
