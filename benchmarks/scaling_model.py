@@ -24,6 +24,11 @@ a thread a worker displaces holds up the others at every parallel operation. Tha
 keeps a core busy a given share of the time - and replaced the rule that counted no thread
 beyond the cores the workers leave. Costs are this machine's, measured
 (``scaling_costs.json``).
+
+``predict`` gives the steady state. A run's own figures are counts over its whole wall time,
+and before the learner's first step (``max(min_replay_size, batch)`` transitions) the workers
+run unhindered: ``check`` compares each run with ``over_a_run``, the steady state plus that
+start, for the run's length.
 """
 
 from __future__ import annotations
@@ -121,7 +126,31 @@ def predict(
     }  # fmt: skip
 
 
+RECIPE = Path(__file__).resolve().parents[1] / "experiments/configs/navigation-average.json"
+"""The config ``benchmarks/scaling.py train`` runs: where it says when the learner starts."""
+
+
+def over_a_run(steady: dict, free_rate: float, wall_s: float, first_step: int) -> dict:
+    """What a run of ``wall_s`` seconds reports (its counts over its whole wall time), where
+    ``predict`` gives the steady state: the workers first collect the ``first_step``
+    transitions the learner's first step waits for, at the rate they make with no learner;
+    from that step on the run keeps its ratio, counted from there (the learner never pays for
+    those transitions), so they stay ahead of the learner to the end."""
+    start_s = first_step / free_rate
+    if start_s >= wall_s:
+        return {"env_steps_per_s": free_rate, "learner_steps_per_s": 0.0}
+    steady_part = (wall_s - start_s) / wall_s
+    return {
+        "env_steps_per_s": first_step / wall_s + steady["env_steps_per_s"] * steady_part,
+        "learner_steps_per_s": steady["learner_steps_per_s"] * steady_part,
+    }
+
+
 def check(paths: list[Path], costs: dict) -> list[dict]:
+    """Each configuration's runs (the medians) against the model over a run of their length."""
+    from robogym_ray.training.command import read_sections
+
+    min_replay = read_sections(RECIPE)["d4pg"]["min_replay_size"]
     runs: dict[tuple, list[dict]] = defaultdict(list)
     for path in paths:
         for line in path.read_text().splitlines():
@@ -130,17 +159,21 @@ def check(paths: list[Path], costs: dict) -> list[dict]:
                 continue
             key = (row["task"], row["workers"], row["envs"], row["batch"],
                    row["samples_per_insert"], row.get("learner_threads") or 1,
-                   row.get("d4pg", "{}"))  # fmt: skip
+                   row.get("d4pg", "{}"), 5 * round(row["wall_s"] / 5))  # fmt: skip
             runs[key].append(row)
     out = []
-    for (task, workers, envs, batch, spi, threads, d4pg), rows in sorted(runs.items()):
+    for (task, workers, envs, batch, spi, threads, d4pg, wall), rows in sorted(runs.items()):
         measured = statistics.median(r["env_steps_per_s"] for r in rows)
-        model = predict(costs, task=task, cores=costs["cores"], workers=workers, envs=envs,
-                        batch=batch, samples_per_insert=spi, threads=threads)  # fmt: skip
+        shape = {"task": task, "cores": costs["cores"], "workers": workers, "envs": envs,
+                 "batch": batch, "threads": threads}  # fmt: skip
+        steady = predict(costs, samples_per_insert=spi, **shape)
+        free = predict(costs, samples_per_insert=0.0, **shape)["env_steps_per_s"]
+        model = {**steady, **over_a_run(steady, free, wall, max(min_replay, batch))}
         learner = statistics.median(r["learner_steps_per_s"] for r in rows)
         out.append({
             "task": task, "workers": workers, "envs": envs, "batch": batch, "spi": spi,
-            "threads": threads, "d4pg": d4pg, "runs": len(rows),
+            "threads": threads, "d4pg": d4pg, "wall_s": wall, "runs": len(rows),
+            "steady_model": round(steady["env_steps_per_s"], 1),
             "measured_median": round(measured, 1),
             "measured_min": min(r["env_steps_per_s"] for r in rows),
             "measured_max": max(r["env_steps_per_s"] for r in rows),

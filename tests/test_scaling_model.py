@@ -62,3 +62,16 @@ def test_the_check_covers_every_committed_run(model):
     rows = model.check(sorted(RESULTS.glob("train-*.jsonl")), model.load_costs())
     assert len(rows) >= 20  # as docs/scaling.md lists them; more as runs are added
     assert all(r["runs"] >= 1 and r["measured_median"] > 0 for r in rows)
+
+
+def test_a_short_run_reports_the_start_up_the_steady_state_leaves_out(model):
+    steady = {"env_steps_per_s": 300.0, "learner_steps_per_s": 2.0}
+    # 4,096 transitions at 1,024/s: 4 s before the learner's first step, of a 40-s run.
+    run = model.over_a_run(steady, free_rate=1024.0, wall_s=40.0, first_step=4096)
+    assert run["env_steps_per_s"] == pytest.approx((4096 + 300 * 36) / 40)
+    assert run["learner_steps_per_s"] == pytest.approx(2.0 * 36 / 40)
+    # A run over before the learner starts reports the free rate and no learner steps.
+    assert model.over_a_run(steady, 1024.0, 3.0, 4096) == {
+        "env_steps_per_s": 1024.0,
+        "learner_steps_per_s": 0.0,
+    }
