@@ -51,12 +51,18 @@ def test_a_killed_evaluator_is_replaced_and_goes_on(tmp_path: Path) -> None:
             if first and first["episodes"] >= KILL_AFTER:
                 os.kill(first["pid"], signal.SIGKILL)
                 seen["killed_at"] = first["episodes"]
+                seen["killed_pid"] = first["pid"]
                 break
         while not done.wait(0.3):
             second = status(f"evaluator-{run}-1")
-            if second and second["episodes"] > 0:
-                seen["replacement"] = second["episodes"]
-                seen["replacement_pid"] = second["pid"]
+            if second is None:
+                continue
+            # Its status can answer before its first episode (the run's ping comes first):
+            # the first count seen says where it started, a later one that it went on.
+            seen.setdefault("replacement_first", second["episodes"])
+            seen["replacement"] = second["episodes"]
+            seen["replacement_pid"] = second["pid"]
+            if second["episodes"] > seen["killed_at"]:
                 return
 
     watcher = threading.Thread(target=kill_then_watch)
@@ -68,8 +74,11 @@ def test_a_killed_evaluator_is_replaced_and_goes_on(tmp_path: Path) -> None:
         watcher.join()
     assert seen.get("killed_at", 0) >= KILL_AFTER, seen
     assert summary["faults/evaluator_failures"] == 1
-    # The replacement went on from the dead one's count, in a process of its own.
+    # The replacement started from the dead one's count (a fresh count would first show 0 or
+    # 1), went on past it, and in a process of its own.
+    assert seen.get("replacement_first", 0) >= seen["killed_at"], seen
     assert seen.get("replacement", 0) > seen["killed_at"], seen
+    assert seen["replacement_pid"] != seen["killed_pid"], seen
     assert summary["eval/episodes"] > seen["killed_at"]
     # Losing the evaluator cost nothing else.
     assert summary["faults/learner_failures"] == 0 == summary["faults/worker_failures"]
