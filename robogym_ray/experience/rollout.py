@@ -93,6 +93,8 @@ class EnvSlot:
     obs: np.ndarray | None = None
     start: tuple[int, bool] = (-1, False)
     """(seed, revisit) the running episode started from."""
+    pending_start: tuple[int, bool] | None = None
+    """A start chosen but not reset into yet: the robot was not ready when the worker began."""
     ret: float = 0.0
     length: int = 0
 
@@ -116,6 +118,7 @@ class RolloutWorker:
         random_steps: int = 0,
         revisits: FailedStartRevisits | None = None,
         num_envs: int = 1,
+        real_robot: bool = False,
     ) -> None:
         """Args:
         make_env: builds one of this worker's envs (Sim via a server provider, or Real).
@@ -126,9 +129,14 @@ class RolloutWorker:
         random_steps: first steps taken with uniform random actions (before any weights).
         revisits: re-run the starts of failed episodes; every reset is then seeded from it.
         num_envs: envs stepped together (K), with one batched policy forward per step.
+        real_robot: its env reaches a real robot. One that does not answer the first reset
+            (paused, its server down) is retried by ``collect`` as at any later reset, rather
+            than failing the worker: a real robot's worker is never replaced. A simulated
+            worker's first reset raises, so that a new worker and server take its place.
         """
         if num_envs < 1:
             raise ConfigError(f"worker {index}: num_envs={num_envs}; expected >= 1")
+        self.make_env = make_env
         self.slots = [EnvSlot(make_env(), NStepAccumulator(d4pg.n_step, d4pg.discount))
                       for _ in range(num_envs)]  # fmt: skip
         self.env = self.slots[0].env
@@ -153,7 +161,16 @@ class RolloutWorker:
         self.revisits = revisits
         for k, slot in enumerate(self.slots):
             slot.start = revisits.next_start() if revisits else (seed + k * ENV_SEED_STRIDE, False)
-            slot.obs = slot.env.reset(seed=slot.start[0])[0]
+            try:
+                slot.obs = slot.env.reset(seed=slot.start[0])[0]
+            except RobotServerError as exc:
+                if not real_robot:
+                    raise
+                log.warning("worker %d: robot not ready at the start (%s); retrying in its "
+                            "first collect", index, exc)  # fmt: skip
+                slot.pending_start = slot.start
+                self._renew_env(slot)
+        self.env = self.slots[0].env  # renewed above if its robot was not ready
 
     def set_weights(self, weights: Mapping[str, np.ndarray], version: int) -> None:
         self.actor.set_weights(dict(weights))
@@ -233,16 +250,24 @@ class RolloutWorker:
         slot.obs = None
 
     def _try_reset(self, slot: EnvSlot, result: RolloutResult) -> bool:
-        start = self.revisits.next_start() if self.revisits else None
+        start = slot.pending_start or (self.revisits.next_start() if self.revisits else None)
         try:
             slot.obs, _ = slot.env.reset(seed=None if start is None else start[0])
-            slot.start = start or (-1, False)
+            slot.start, slot.pending_start = start or (-1, False), None
             return True
         except RobotServerError as exc:
             log.warning("worker %d: robot not ready (%s); retrying later", self.index, exc)
+            if slot.pending_start is not None:
+                self._renew_env(slot)
             result.paused = True
             time.sleep(self.retry_wait_s)  # don't spin on a paused robot
             return False
+
+    def _renew_env(self, slot: EnvSlot) -> None:
+        """A new env in place of one whose first reset raised: gymnasium's passive env checker
+        takes that reset as its checked first one, then fails the first step (gymnasium 1.4)."""
+        slot.env.close()
+        slot.env = self.make_env()
 
     def ping(self) -> int:
         return self.total_steps

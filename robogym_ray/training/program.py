@@ -178,6 +178,7 @@ class Program:
             random_steps=cfg.random_steps,
             revisits=revisits_for(cfg, i) if real_env is None else None,
             num_envs=1 if real_env else cfg.envs_per_worker, learner=self.learner,
+            real_robot=real_env is not None,
         )  # fmt: skip
 
     def _evaluator_actor(self, generation: int = 0, first_episode: int = 0) -> Any:

@@ -7,10 +7,13 @@ the end of the session.
 
 from __future__ import annotations
 
+import os
 import shutil
+import signal
 import socket
 import tempfile
-from collections.abc import Iterator
+import threading
+from collections.abc import Callable, Iterator
 
 import pytest
 
@@ -52,3 +55,25 @@ def temp_dir() -> Iterator[str]:
     path = tempfile.mkdtemp(prefix="rgc", dir="/tmp")  # short: Unix socket paths are limited
     yield path
     shutil.rmtree(path, ignore_errors=True)
+
+
+@pytest.fixture
+def stop_run() -> Iterator[Callable[[], None]]:
+    """Ends the test's in-process ``run_training`` as ``ray job stop`` would (SIGTERM: collection
+    stops, the final checkpoint and summary are written, ``ended`` is ``stopped``), called from
+    a watcher thread once the test has seen what it waits for, so a run bounded by
+    ``max_wall_s`` need not run out its time. Sent once: a second SIGTERM exits at once. Until
+    the test ends, a SIGTERM that comes after the run restored its handlers is dropped rather
+    than ending pytest."""
+    previous = signal.signal(signal.SIGTERM, lambda signum, frame: None)
+    sent = threading.Event()
+
+    def stop() -> None:
+        if not sent.is_set():
+            sent.set()
+            os.kill(os.getpid(), signal.SIGTERM)
+
+    try:
+        yield stop
+    finally:
+        signal.signal(signal.SIGTERM, previous)

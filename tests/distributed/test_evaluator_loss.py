@@ -6,6 +6,7 @@ from __future__ import annotations
 import os
 import signal
 import threading
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -22,7 +23,9 @@ KILL_AFTER = 3
 started its count again would report after its first call (one episode)."""
 
 
-def test_a_killed_evaluator_is_replaced_and_goes_on(tmp_path: Path) -> None:
+def test_a_killed_evaluator_is_replaced_and_goes_on(
+    tmp_path: Path, stop_run: Callable[[], None]
+) -> None:
     run = "evalloss"
     cfg = TrainConfig(
         task="navigation",
@@ -30,7 +33,7 @@ def test_a_killed_evaluator_is_replaced_and_goes_on(tmp_path: Path) -> None:
         sim_path="grpc",  # the evaluator leases a supervised server, as holder "evaluator"
         envs_per_worker=1,
         total_steps=10**6,
-        max_wall_s=75.0,  # start-up and three episodes before the kill, on a busy machine
+        max_wall_s=75.0,  # a cap: the run is stopped once the replacement has gone on
         logdir=str(tmp_path),
         run_name=run,
         progress=False,
@@ -63,6 +66,7 @@ def test_a_killed_evaluator_is_replaced_and_goes_on(tmp_path: Path) -> None:
             seen["replacement"] = second["episodes"]
             seen["replacement_pid"] = second["pid"]
             if second["episodes"] > seen["killed_at"]:
+                stop_run()  # seen all it shows: the rest of max_wall_s would add nothing
                 return
 
     watcher = threading.Thread(target=kill_then_watch)

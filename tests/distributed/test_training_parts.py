@@ -12,7 +12,7 @@ import pytest
 
 from robogym_ray.envs.outcomes import SERVER_RESTARTED
 from robogym_ray.envs.outcomes import rates as status_rates
-from robogym_ray.errors import ConfigError
+from robogym_ray.errors import ConfigError, RobotServerError
 from robogym_ray.experience.evaluator import Evaluator
 from robogym_ray.experience.rollout import RolloutWorker, box_dims, make_gym_env
 from robogym_ray.learner.checkpoint import REPLAY_SUFFIX
@@ -23,6 +23,7 @@ from robogym_ray.storage import RunStorage
 from robogym_ray.training.config import TrainConfig
 from robogym_ray.training.program import seed_checkpoint
 from robogym_ray.training.setup import noise_scale
+from tests.distributed.conftest import free_port
 
 SMALL = D4PGConfig(
     policy_hidden=(32, 32),
@@ -189,6 +190,33 @@ def test_real_robot_failure_abandons_the_episode_and_waits_for_the_robot() -> No
         while worker.collect(5).steps == 0 and time.monotonic() < deadline:
             pass
         assert worker.collect(5).steps == 5  # the worker carried on with the robot back
+    finally:
+        server.stop()
+        worker.close()
+
+
+def test_a_real_robot_down_when_its_worker_starts_is_waited_for_as_a_paused_one() -> None:
+    """The worker starts (a real robot's worker is never replaced); its first collect finds
+    the robot not ready, as a paused one, and the episode starts from the seed chosen at the
+    start once the robot answers. A simulated worker's start fails instead, to be replaced."""
+    from robogym_ray.robots.server import start_robot_server
+
+    port = free_port()  # nothing listens there yet
+    env_kwargs = {"rs_address": f"127.0.0.1:{port}", "deadlines": Deadlines.fast()}
+    make = make_gym_env("RoboGymRay/ObstacleAvoidanceMir100Rob-v0", env_kwargs)
+    with pytest.raises(RobotServerError):
+        RolloutWorker(make, SMALL, seed=7)
+    worker = RolloutWorker(make, SMALL, seed=7, real_robot=True)
+    worker.retry_wait_s = 0.01
+    result = worker.collect(10)
+    assert result.steps == 0 and result.paused and result.episodes == []
+    server = start_robot_server("mir100", scene="lab_6x8", seed=0, port=port)
+    try:
+        deadline = time.monotonic() + 30  # gRPC may back off before reconnecting
+        while worker.collect(5).steps == 0 and time.monotonic() < deadline:
+            pass
+        assert worker.collect(5).steps == 5
+        assert worker.slots[0].start == (7, False) and worker.slots[0].pending_start is None
     finally:
         server.stop()
         worker.close()
