@@ -93,12 +93,17 @@ def ray_node(
 
 
 def agent_ports() -> list[str]:
-    """Free ports for the node's dashboard agent. Its default HTTP port (52365) is one per
-    machine: any other Ray running here (a training, another test session) holds it, and
-    the agent of a node started beside it fails to bind, so `ray job submit` finds none."""
+    """Free ports for the node's agents, each given rather than left to the agent to choose.
+    The dashboard agent's default HTTP port (52365) is one per machine: any other Ray running
+    here (a training, another test session) holds it, and the agent of a node started beside
+    it fails to bind, so `ray job submit` finds none. A port left at 0 is written to a file by
+    its agent, and the raylet gives up on that file after 15 s and dies (a node that never
+    joins): on 2 cores busy with a training an agent can take longer than that to start."""
     return [
         f"--dashboard-agent-listen-port={free_port()}",
         f"--dashboard-agent-grpc-port={free_port()}",
+        f"--metrics-export-port={free_port()}",
+        f"--runtime-env-agent-port={free_port()}",
     ]
 
 

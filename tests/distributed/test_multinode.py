@@ -9,8 +9,9 @@ One cluster, one sequence (starting nodes dominates the cost on 2 cores):
    ``--learner-resource``; the workers-only node is killed: its workers are replaced on the
    surviving node; a new node joins (as an autoscaler's would);
 3. the learner's node is killed: Ray restarts the learner on the new node, which restores its
-   checkpoint and replay snapshot from the storage; the run ends normally, counts right, and
-   stderr carries no unhandled-error traceback.
+   checkpoint and replay snapshot from the storage and trains on; the run, then stopped as
+   `ray job stop` would stop it, ends with its summary, counts right, and stderr carries no
+   unhandled-error traceback.
 """
 
 from __future__ import annotations
@@ -102,6 +103,21 @@ print("PIDS" + json.dumps(out))
     return json.loads(line[-1][4:])
 
 
+def learner_status(port: int, env: dict[str, str]) -> dict[str, int]:
+    """The run's learner's ``status()``, asked over Ray (empty while it does not answer)."""
+    code = f"""
+import json, ray
+ray.init(address="127.0.0.1:{port}", logging_level="ERROR", namespace="robogym-ray")
+learner = ray.get_actor("learner-{RUN}", namespace="robogym-ray")
+print("STATUS" + json.dumps(ray.get(learner.status.remote(), timeout=30)))
+"""
+    out = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120
+    )
+    line = [x for x in out.stdout.splitlines() if x.startswith("STATUS")]
+    return json.loads(line[-1][6:]) if line else {}
+
+
 def on_node(pids: dict[str, int], node: subprocess.Popen) -> list[str]:
     return [name for name, pid in pids.items() if node.pid in ancestors(pid)]
 
@@ -158,7 +174,7 @@ def test_node_losses_on_a_cluster_of_separate_disks(temp_dir: str, tmp_path: Pat
                 # 2. A training on shared storage; the learner only where learner_node is.
                 driver = subprocess.Popen(
                     train(port, shared, "--workers", "2", "--envs-per-worker", "2",
-                          "--total-steps", "10000000", "--max-wall-s", "150",
+                          "--total-steps", "10000000", "--max-wall-s", "360",
                           "--learner-resource", "learner_node", "--checkpoint-every", "100",
                           "--replay-snapshot-every-s", "10", "--policy-snapshot-every-s", "0"),
                     env=env, stdout=subprocess.PIPE, stderr=log, text=True,
@@ -185,13 +201,23 @@ def test_node_losses_on_a_cluster_of_separate_disks(temp_dir: str, tmp_path: Pat
                 os.killpg(a.pid, signal.SIGKILL)
                 killed = time.monotonic()
                 a.wait(timeout=30)
+
+                def trained_after_restoring() -> bool:
+                    status = learner_status(port, env)
+                    restored = status.get("restored_from_step", 0)
+                    return restored >= step > 0 and status["version"] > restored
+
+                wait_for(trained_after_restoring, 300, "the restarted learner to train on")
+                # All this run can show is shown: it ends as `ray job stop` would end it (the
+                # rest of --max-wall-s would only add time), with its summary.
+                driver.send_signal(signal.SIGTERM)
                 stdout, _ = driver.communicate(timeout=400)
                 ended = time.monotonic()
     log.close()
     err = (tmp_path / "driver.err").read_text()
     assert driver.returncode == 0, stdout[-2000:] + err[-4000:]
     summary = json.loads((shared / RUN / "summary.json").read_text())
-    assert summary["ended"] == "completed"
+    assert summary["ended"] == "stopped" and summary["stopped_by"] == "SIGTERM"
     assert summary["faults/learner_failures"] == 1
     assert summary["learner_restored_from_step"] >= step
     assert summary["learner_restored_replay"] >= transitions
