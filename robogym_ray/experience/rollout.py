@@ -139,7 +139,6 @@ class RolloutWorker:
         self.make_env = make_env
         self.slots = [EnvSlot(make_env(), NStepAccumulator(d4pg.n_step, d4pg.discount))
                       for _ in range(num_envs)]  # fmt: skip
-        self.env = self.slots[0].env
         self.index = index
         obs_dim, act_dim = box_dims(self.env)
         self.low = self.env.action_space.low.astype(np.float64)
@@ -170,7 +169,11 @@ class RolloutWorker:
                             "first collect", index, exc)  # fmt: skip
                 slot.pending_start = slot.start
                 self._renew_env(slot)
-        self.env = self.slots[0].env  # renewed above if its robot was not ready
+
+    @property
+    def env(self) -> gym.Env:
+        """The first env (its spaces are every env's): the slot's own, renewed with it."""
+        return self.slots[0].env
 
     def set_weights(self, weights: Mapping[str, np.ndarray], version: int) -> None:
         self.actor.set_weights(dict(weights))

@@ -23,6 +23,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -77,11 +78,26 @@ def ancestors(pid: int) -> set[int]:
     return seen
 
 
-def actor_pids(port: int, env: dict[str, str]) -> dict[str, int]:
-    """{actor name: pid} of the run's learner and rollout workers, asked over Ray."""
+def ask_run(port: int, env: dict[str, str], body: str, required: bool = True) -> Any:
+    """What ``body`` (Python run by a driver joined to the cluster, with ``ray`` and ``json``
+    imported) prints after ``ANSWER``, as JSON. When it printed none: a failed assertion with
+    the driver's output, or None where an answer is not ``required``."""
     code = f"""
 import json, ray
 ray.init(address="127.0.0.1:{port}", logging_level="ERROR", namespace="robogym-ray")
+{body}
+"""
+    out = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=180
+    )
+    line = [x for x in out.stdout.splitlines() if x.startswith("ANSWER")]
+    assert line or not required, out.stdout[-2000:] + out.stderr[-2000:]
+    return json.loads(line[-1][len("ANSWER") :]) if line else None
+
+
+def actor_pids(port: int, env: dict[str, str]) -> dict[str, int]:
+    """{actor name: pid} of the run's learner and rollout workers, asked over Ray."""
+    return ask_run(port, env, f"""
 out = {{}}
 for a in ray.util.list_named_actors(all_namespaces=True):
     name = a["name"]
@@ -93,29 +109,17 @@ for a in ray.util.list_named_actors(all_namespaces=True):
             out[name] = ray.get(h.pid.remote(), timeout=60)
         except Exception:
             pass
-print("PIDS" + json.dumps(out))
-"""
-    out = subprocess.run(
-        [sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=180
-    )
-    line = [x for x in out.stdout.splitlines() if x.startswith("PIDS")]
-    assert line, out.stdout[-2000:] + out.stderr[-2000:]
-    return json.loads(line[-1][4:])
+print("ANSWER" + json.dumps(out))
+""")  # fmt: skip
 
 
 def learner_status(port: int, env: dict[str, str]) -> dict[str, int]:
     """The run's learner's ``status()``, asked over Ray (empty while it does not answer)."""
-    code = f"""
-import json, ray
-ray.init(address="127.0.0.1:{port}", logging_level="ERROR", namespace="robogym-ray")
-learner = ray.get_actor("learner-{RUN}", namespace="robogym-ray")
-print("STATUS" + json.dumps(ray.get(learner.status.remote(), timeout=30)))
-"""
-    out = subprocess.run(
-        [sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120
-    )
-    line = [x for x in out.stdout.splitlines() if x.startswith("STATUS")]
-    return json.loads(line[-1][6:]) if line else {}
+    status = ask_run(port, env, f"""
+learner = ray.get_actor("learner-{RUN}")
+print("ANSWER" + json.dumps(ray.get(learner.status.remote(), timeout=30)))
+""", required=False)  # fmt: skip
+    return status or {}
 
 
 def on_node(pids: dict[str, int], node: subprocess.Popen) -> list[str]:
