@@ -149,6 +149,10 @@ def test_train_prints_a_short_summary_and_json_on_request() -> None:
     assert "greedy evaluation (last 100 of 398 episodes): success 98.0 %" in text
     assert f"checkpoint:  {summary['checkpoint']}" in text
     assert f"tensorboard --logdir {summary['logdir']}" in text
+    # A summary that names its folder only as storage.root (before logdir was the one field).
+    older = {k: v for k, v in summary.items() if k != "logdir"}
+    older["storage"] = {**summary.get("storage", {}), "root": summary["logdir"]}
+    assert train_cmd.summary_text(older) == text
     assert len(text) < 1000 and len(lines) <= 8  # a few lines, not the 3 KB JSON
     # A run too short to evaluate has no eval/ rates: the line is left out, nothing fails.
     short = {k: v for k, v in summary.items() if not k.startswith("eval/")}

@@ -76,6 +76,14 @@ def test_scalars_say_no_rate_before_an_episode_and_the_rates_after() -> None:
     assert out["train/return_last100"] == 0.5 and out["eval/best_snapshot_success_rate"] == 0.9
 
 
+def test_run_root_is_logdir_or_an_older_summarys_storage_root() -> None:
+    assert stats.run_root({"logdir": "/r/a", "storage": {"node": "vm"}}) == "/r/a"
+    older = {"storage": {"root": "s3://b/r/a", "node": "(object store)"}}
+    assert stats.run_root(older) == "s3://b/r/a"
+    with pytest.raises(KeyError, match="neither 'logdir' nor 'storage.root'"):
+        stats.run_root({"storage": {"node": "vm"}})
+
+
 def test_eval_entry_and_summary() -> None:
     s = RunStats(env_steps=1000, learner={"learner_steps": 120.0})
     s.eval = {"eval_return": 12.345, "eval_success_rate": 0.5, "eval_snapshot_success_rate": 1.0}

@@ -189,7 +189,9 @@ def _rates(summary: dict[str, Any], prefix: str) -> str:
 
 def summary_text(summary: dict[str, Any]) -> str:
     """A few lines for a person: how the run ended, how it went, where its files are."""
-    root = str(summary["logdir"])
+    from robogym_ray.training.stats import run_root
+
+    root = run_root(summary)
     done = (
         f"{summary['env_steps']:,} env steps, {summary['episodes']:,} episodes, "
         f"{summary['learner_steps']:,} learner steps in {summary['wall_s']:.1f} s."

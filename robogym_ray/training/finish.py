@@ -86,9 +86,9 @@ def finish(
         - (learner_status["total_added"] - p.first_total_added),
         best_snapshot=None if p.selector is None else p.selector.summary(),
         policy_snapshots=p.snapshots.written,
+        # The run's folder once, as logdir: the name every summary has had (stats.run_root).
         server_nodes=p.server_nodes(), logdir=p.storage.location(),
-        storage={"root": p.storage.location(),
-                 "node": node_label() if p.storage.is_local else "(object store)"},
+        storage={"node": node_label() if p.storage.is_local else "(object store)"},
         ended=ended,
     )  # fmt: skip
     if stopped_by:

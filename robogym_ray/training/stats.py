@@ -187,3 +187,20 @@ def summary(stats: RunStats, final: Mapping[str, float], **facts: Any) -> dict[s
         "revisited_episodes": stats.revisits,
         **{k: round(v, 4) for k, v in final.items()},
     }
+
+
+def run_root(summary: Mapping[str, Any]) -> str:
+    """The run's folder (a path or an object store's URI) that a ``summary.json`` names.
+
+    ``logdir`` names it; summaries written before it was the one field also had it as
+    ``storage.root``, which this still reads when ``logdir`` is missing.
+
+    Raises:
+        KeyError: the summary names neither.
+    """
+    if "logdir" in summary:
+        return str(summary["logdir"])
+    storage = summary.get("storage")
+    if isinstance(storage, Mapping) and "root" in storage:
+        return str(storage["root"])
+    raise KeyError("summary.json names no run folder (neither 'logdir' nor 'storage.root')")

@@ -55,7 +55,7 @@ def test_the_short_summary_says_a_stopped_run_stopped() -> None:
                "wall_s": 9.5, "restarts": {}, "dropped_steps": 0, "robot_errors": 0,
                "checkpoint": "/r/sig/checkpoints/learner.pt", "logdir": "/r/sig",
                "ended": "stopped", "stopped_by": "SIGINT",
-               "storage": {"root": "/r/sig", "node": "vm (10.0.0.1)"}}  # fmt: skip
+               "storage": {"node": "vm (10.0.0.1)"}}  # fmt: skip
     lines = summary_text(summary).splitlines()
     assert lines[0] == (
         "Stopped early by SIGINT: Pendulum-v1 trained 1,200 env steps, 6 episodes, "

@@ -73,7 +73,8 @@ def test_a_run_on_s3_storage_and_reading_it_back(s3: Any, tmp_path: Path) -> Non
     summary = json.loads(body)
     learner_pt = f"{storage}/first/checkpoints/learner.pt"
     assert summary["checkpoint"] == learner_pt
-    assert summary["storage"] == {"root": f"{storage}/first", "node": "(object store)"}
+    assert summary["logdir"] == f"{storage}/first"  # the run's folder, named once
+    assert summary["storage"] == {"node": "(object store)"}
     assert f"files:       {storage}/first/" in out.stdout
 
     # The run's files are read from the bucket: evaluate, export, --init-from.
