@@ -29,7 +29,7 @@ import numpy as np
 from robogym_ray.config import check_address, check_dir_path, quote
 from robogym_ray.envs import outcomes
 from robogym_ray.envs.outcomes import CATEGORIES
-from robogym_ray.envs.registration import variant_id
+from robogym_ray.envs.registration import server_spec_of, variant_id
 from robogym_ray.envs.render.video import EpisodeVideos
 from robogym_ray.errors import ConfigError
 from robogym_ray.experience.episodes import greedy_episode
@@ -173,19 +173,13 @@ def _mean_of(episodes: list[EpisodeRecord], attr: str) -> float | None:
 
 
 def serve_args(env_id: str) -> list[str]:
-    """``robogym-ray serve`` arguments for the robot server a task needs (robot, scene, options).
+    """``robogym-ray serve`` arguments for the robot server a task needs: its
+    ``server_spec_of`` (robot, scene, options) as flags.
 
     Add ``--real-time --emulate-hardware`` for the emulated real robot of that task.
     """
-    import gymnasium as gym
-
-    import robogym_ray.envs  # noqa: F401 - registers the ids
-
-    env = gym.make(variant_id(env_id, "sim"))  # no server starts before reset
-    try:
-        robot, scene, options = env.unwrapped.server_spec()  # type: ignore[attr-defined]
-    finally:
-        env.close()
+    # Through the Sim id: a non-RoboGymRay id fails here, in variant_id's one line.
+    robot, scene, options = server_spec_of(variant_id(env_id, "sim"))
     args = ["--robot", robot] + (["--scene", scene] if scene else [])
     if options:
         args += ["--option", *(f"{k}={v}" for k, v in options.items())]

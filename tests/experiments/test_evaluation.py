@@ -51,6 +51,9 @@ def test_ids_categories_and_checks(tmp_path) -> None:
     assert [category(s) for s in ("success", "collision", "max_steps_exceeded", "x")] == [
         "success", "collision", "timeout", "other"]  # fmt: skip
     assert serve_args(POSITIONING)[:4] == ["--robot", "ur10", "--scene", "empty"]
+    assert serve_args(variant_id(POSITIONING, "rob")) == serve_args(POSITIONING)  # one server
+    with pytest.raises(ConfigError, match="is not a RoboGymRay"):
+        serve_args("Pendulum-v1")
     with pytest.raises(ConfigError, match="via_actor"):
         EvaluationConfig(via_actor=True)
     save_learner(tmp_path / "nav.pt", 20, 2)
