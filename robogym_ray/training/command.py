@@ -132,7 +132,7 @@ def check_inputs(setup: TrainSetup) -> None:
     task, the D4PG settings, the log directory, the local Ray's CPUs and ``--init-from``."""
     from robogym_ray.experience.rollout import box_dims, make_gym_env
     from robogym_ray.learner.checkpoint import CHECKPOINT_NAME
-    from robogym_ray.storage import RunStorage, is_uri
+    from robogym_ray.storage import is_uri
     from robogym_ray.training import setup as run_setup
     from robogym_ray.training.presets import d4pg_for, resolve_task
 
@@ -150,12 +150,12 @@ def check_inputs(setup: TrainSetup) -> None:
         run_setup.check_resources(cfg, cfg.num_cpus or float(os.cpu_count() or 1))
     init_from, label = cfg.init_from, "--init-from"
     if cfg.run_name:  # a taken name without --resume, or --resume of another task: refused
-        run_setup.check_run_name(cfg, preset.env_id)
+        place = run_setup.run_place(cfg, preset.env_id)
         if cfg.resume:
             # A resumed run continues from its own checkpoint and ignores --init-from
             # (seed_checkpoint); checked the same way (other network sizes would otherwise
             # crash its learner actor after Ray started).
-            own = RunStorage(root).child(cfg.run_name).location(f"checkpoints/{CHECKPOINT_NAME}")
+            own = place.storage.location(f"checkpoints/{CHECKPOINT_NAME}")
             init_from, label = own, "--resume: the run's checkpoint"
     # The file first: probing the env below imports pybullet, whose banner goes to stderr.
     state = run_setup.read_init_from(init_from, label) if init_from else None

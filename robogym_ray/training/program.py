@@ -62,19 +62,23 @@ def requires(*names: str | None) -> dict[str, Any]:
 
 
 class Program:
-    """The actors of one run. Built in ``__init__`` (stopped again if any fails to start);
-    ``shutdown`` stops every one of them. ``cfg.run_name`` is set (``run.run_training``)."""
+    """The actors of one run, in ``place`` (``setup.run_place``: its name and storage, resolved
+    and checked once). Built in ``__init__`` (stopped again if any fails to start);
+    ``shutdown`` stops every one of them."""
 
     def __init__(
-        self, cfg: TrainConfig, d4pg: D4PGConfig, preset: TaskPreset, emulation: EmulationConfig
+        self,
+        cfg: TrainConfig,
+        d4pg: D4PGConfig,
+        preset: TaskPreset,
+        emulation: EmulationConfig,
+        place: setup.RunPlace,
     ) -> None:
         self.cfg, self.d4pg, self.preset, self.emulation = cfg, d4pg, preset, emulation
-        assert cfg.run_name, "run_training names the run"
-        self.name = cfg.run_name
+        self.name = place.name
         setup.check_resources(cfg)
-        root = RunStorage(setup.storage_root(cfg))
-        check_reachable(root)  # before anything of the run is written or started
-        self.storage = root.child(self.name)
+        check_reachable(place.root)  # before anything of the run is written or started
+        self.storage = place.storage
         try:
             # Where this process writes (TensorBoard, policy files): the storage's folder for a
             # path, a local folder uploaded from for an object store.

@@ -42,11 +42,11 @@ def run_training(
     d4pg = d4pg_for(preset, d4pg_overrides, cfg)
     if cfg.emulated_workers and not preset.env_id.startswith("RoboGymRay/"):
         raise ConfigError(f"--emulated-workers needs a robot task; {preset.env_id} has none")
-    cfg = replace(cfg, run_name=setup.run_name(cfg, preset.env_id))
-    setup.check_run_name(cfg, preset.env_id)
+    place = setup.run_place(cfg, preset.env_id)
+    cfg = replace(cfg, run_name=place.name)  # config.json records the name
     started_ray = setup.ensure_ray(cfg)
     try:
-        program = Program(cfg, d4pg, preset, emulation or EmulationConfig())
+        program = Program(cfg, d4pg, preset, emulation or EmulationConfig(), place)
     except BaseException:
         if started_ray:
             ray.shutdown()

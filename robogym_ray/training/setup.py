@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import logging
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -134,12 +135,34 @@ def check_init_from(
     return state
 
 
-def run_name(cfg: TrainConfig, env_id: str) -> str:
-    """``cfg.run_name``, or a new one: the task and the time, with ``-2``, ``-3``... when two
-    runs start in the same second (a default name never lands in another run's folder)."""
-    if cfg.run_name:
-        return cfg.run_name
+@dataclass(frozen=True)
+class RunPlace:
+    """Where a run's files go, resolved once before anything starts (``run_place``) and handed
+    to the builder: nothing below resolves the name or the root again (a default name is the
+    time: resolved twice, it could name two folders)."""
+
+    name: str
+    root: RunStorage
+    """``--storage`` (else ``--logdir``) as every node sees it (``storage_root``)."""
+
+    @property
+    def storage(self) -> RunStorage:
+        """The run's own folder: ``<root>/<name>``."""
+        return self.root.child(self.name)
+
+
+def run_place(cfg: TrainConfig, env_id: str) -> RunPlace:
+    """The run's place: ``cfg.run_name`` (or a new one, ``new_run_name``) under its storage
+    root, checked as ``check_run_place`` checks it."""
     root = RunStorage(storage_root(cfg))
+    place = RunPlace(cfg.run_name or new_run_name(root, env_id), root)
+    check_run_place(place, cfg.resume, env_id)
+    return place
+
+
+def new_run_name(root: RunStorage, env_id: str) -> str:
+    """The task and the time, with ``-2``, ``-3``... when two runs start in the same second (a
+    default name never lands in another run's folder)."""
     base = f"{env_id.split('/')[-1]}-{time.strftime('%Y%m%d-%H%M%S')}"
     name, n = base, 1
     while root.child(name).holds_run() or (root.is_local and (root.path / name).exists()):
@@ -148,18 +171,17 @@ def run_name(cfg: TrainConfig, env_id: str) -> str:
     return name
 
 
-def check_run_name(cfg: TrainConfig, env_id: str) -> None:
+def check_run_place(place: RunPlace, resume: bool, env_id: str) -> None:
     """A run folder that holds a run already is continued only when asked (``--resume``), and
     only for the same task; ``--resume`` needs a checkpoint to continue from. One line each."""
-    assert cfg.run_name
-    storage = RunStorage(storage_root(cfg)).child(cfg.run_name)
+    storage = place.storage
     held = storage.holds_run()
-    if held and not cfg.resume:
+    if held and not resume:
         raise ConfigError(
             f"run folder {storage.location()} holds a run already: pass --resume to continue "
             "it, or another --run-name (leave it out for a new name each run)"
         )
-    if not cfg.resume:
+    if not resume:
         return
     if not storage.exists(f"checkpoints/{CHECKPOINT_NAME}"):
         raise ConfigError(f"--resume: {storage.location()} has no checkpoint to continue from")

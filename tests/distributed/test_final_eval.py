@@ -24,6 +24,7 @@ from robogym_ray.training.evals import EvalSchedule
 from robogym_ray.training.logger import RunLogger
 from robogym_ray.training.presets import d4pg_for, resolve_task
 from robogym_ray.training.program import Program
+from robogym_ray.training.setup import run_place
 from robogym_ray.training.stats import RunStats
 
 pytestmark = [pytest.mark.ray, pytest.mark.slow, pytest.mark.usefixtures("ray_cluster")]
@@ -38,7 +39,8 @@ def _program(tmp_path: Path, **cfg: object) -> Iterator[tuple[TrainConfig, Progr
         task=NAV, workers=1, total_steps=1000, logdir=str(tmp_path), progress=False, **cfg
     )
     preset = resolve_task(config.task)
-    program = Program(config, d4pg_for(preset, None), preset, EmulationConfig())
+    place = run_place(config, preset.env_id)
+    program = Program(config, d4pg_for(preset, None), preset, EmulationConfig(), place)
     logger = RunLogger(program.run_dir, total=config.total_steps, progress=False)
     try:
         yield config, program, logger

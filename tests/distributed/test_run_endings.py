@@ -15,7 +15,7 @@ import pytest
 import torch
 
 from robogym_ray.training.config import TrainConfig
-from robogym_ray.training.setup import check_run_name, run_name
+from robogym_ray.training.setup import run_place
 
 pytestmark = [pytest.mark.slow]
 
@@ -68,13 +68,15 @@ def test_the_short_summary_says_a_stopped_run_stopped() -> None:
 
 def test_a_default_run_name_never_lands_in_another_run(tmp_path: Path) -> None:
     cfg = TrainConfig(task="pendulum", logdir=str(tmp_path))
-    first = run_name(cfg, "Pendulum-v1")
+    first = run_place(cfg, "Pendulum-v1").name
     (tmp_path / first).mkdir()  # a run that started in the same second
-    second = run_name(cfg, "Pendulum-v1")
+    second = run_place(cfg, "Pendulum-v1").name
     assert second == f"{first}-2"
     (tmp_path / second / "checkpoints").mkdir(parents=True)
-    assert run_name(cfg, "Pendulum-v1") == f"{first}-3"
-    assert run_name(TrainConfig(task="pendulum", run_name="mine"), "Pendulum-v1") == "mine"
+    assert run_place(cfg, "Pendulum-v1").name == f"{first}-3"
+    mine = run_place(TrainConfig(task="pendulum", logdir=str(tmp_path), run_name="mine"), "x")
+    assert mine.name == "mine" and mine.root.location() == str(tmp_path)
+    assert mine.storage.location() == str(tmp_path / "mine")  # the run's folder, once
 
 
 def test_a_taken_run_name_is_refused_unless_resumed_and_only_for_its_task(
@@ -88,11 +90,11 @@ def test_a_taken_run_name_is_refused_unless_resumed_and_only_for_its_task(
     nav = "RoboGymRay/ObstacleAvoidanceMir100Sim-v0"
     cfg = TrainConfig(task="navigation", logdir=str(tmp_path), run_name="dup")
     with pytest.raises(ConfigError, match="holds a run already: pass --resume"):
-        check_run_name(cfg, nav)
+        run_place(cfg, nav)
     resume = TrainConfig(task="navigation", logdir=str(tmp_path), run_name="dup", resume=True)
     with pytest.raises(ConfigError, match="has no checkpoint to continue from"):
-        check_run_name(resume, nav)
+        run_place(resume, nav)
     (run / "checkpoints" / "learner.pt").write_bytes(b"x")
-    check_run_name(resume, nav)  # the same task: continued
+    run_place(resume, nav)  # the same task: continued
     with pytest.raises(ConfigError, match="is a run of .*Mir100.*, not .*UR10"):
-        check_run_name(resume, "RoboGymRay/EndEffectorPositioningUR10Sim-v0")
+        run_place(resume, "RoboGymRay/EndEffectorPositioningUR10Sim-v0")
