@@ -318,14 +318,19 @@ def write_result(result: EvaluationResult, out: str | Path) -> tuple[Path, Path]
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     from robogym_ray.config import add_config_args
 
-    parser.add_argument("policy", help="learner.pt checkpoint or exported policy (with .json).")
+    parser.add_argument(
+        "policy",
+        help="A run's folder (its checkpoint is taken), a learner.pt checkpoint or an exported "
+        "policy (with .json).",
+    )
     add_config_args(parser, EvaluationConfig)
 
 
 def run(args: argparse.Namespace) -> int:
     from robogym_ray.config import config_from_args
+    from robogym_ray.export import policy_argument
 
     cfg = config_from_args(EvaluationConfig, args)
-    result = evaluate(args.policy, cfg)
+    result = evaluate(policy_argument(args.policy), cfg)
     report(result, cfg.out)
     return 0

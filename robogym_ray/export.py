@@ -18,6 +18,7 @@ import argparse
 import io
 import json
 import re
+import sys
 from dataclasses import MISSING, asdict, dataclass, fields
 from pathlib import Path
 from typing import Any
@@ -28,8 +29,8 @@ from torch import nn
 
 from robogym_ray.config import check_dir_path, check_fields, quote, read_json
 from robogym_ray.errors import ConfigError
-from robogym_ray.learner.checkpoint import policy_weights, read
-from robogym_ray.storage import local_file, staged_write, write_bytes
+from robogym_ray.learner.checkpoint import CHECKPOINT_NAME, RUN_CHECKPOINT, policy_weights, read
+from robogym_ray.storage import RunStorage, is_uri, local_file, staged_write, write_bytes
 from robogym_ray.text import clip_text, first_sentence
 
 FORMAT = "robogym-ray-policy/torchscript-v1"
@@ -232,6 +233,42 @@ class PolicyFunction:
             return self.module(torch.from_numpy(batch))[0].numpy().astype(np.float32)
 
 
+def run_checkpoint(location: str | Path) -> str | None:
+    """The checkpoint in the run folder ``location`` (what a run's summary names as its
+    ``files:``; a path or an object store's URI): ``RUN/checkpoints/learner.pt``, the file the
+    summary's ``checkpoint`` names, or ``learner.pt`` in a run's ``checkpoints/`` itself.
+    None when ``location`` is not a folder (a file, read as it is).
+
+    Raises:
+        ConfigError: a folder with no checkpoint.
+    """
+    location = str(location)
+    candidates = (RUN_CHECKPOINT, CHECKPOINT_NAME)
+    if is_uri(location):  # an object store has no folders to ask about: look for the files
+        store = RunStorage(location)
+        return next((store.location(c) for c in candidates if store.exists(c)), None)
+    folder = Path(location)
+    if not folder.is_dir():
+        return None
+    for candidate in candidates:
+        if (folder / candidate).is_file():
+            return str(folder / candidate)
+    raise ConfigError(
+        f"{location} is a folder with no checkpoint ({RUN_CHECKPOINT} or {CHECKPOINT_NAME}): "
+        "give a run folder, a learner.pt or an exported policy"
+    )
+
+
+def policy_argument(location: str) -> str:
+    """A command's policy argument as the file to read: a run folder gives its checkpoint
+    (``run_checkpoint``), and the command says which file it took (on stderr)."""
+    taken = run_checkpoint(location)
+    if taken is None:
+        return location
+    print(f"{location} is a run folder: using its checkpoint {taken}", file=sys.stderr)
+    return taken
+
+
 def load_policy(path: str | Path, online: bool = False) -> PolicyFunction:
     """An exported policy (it has a sidecar) or a learner checkpoint (see
     :func:`load_checkpoint_policy` for ``online``); ``path`` may be an object store's URI."""
@@ -246,7 +283,9 @@ def load_policy(path: str | Path, online: bool = False) -> PolicyFunction:
 
 # -- CLI: robogym-ray export -------------------------------------------------------------------
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("checkpoint", help="learner.pt written by training (RUN/checkpoints/).")
+    parser.add_argument(
+        "checkpoint", help="A run's folder (its checkpoint is taken) or a learner.pt."
+    )
     parser.add_argument(
         "out",
         help="File to write: TorchScript, or ONNX when it ends in .onnx (for onnxruntime on a "
@@ -261,6 +300,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    info: Any = export_policy(args.checkpoint, args.out, args.env_id, args.online_weights)
+    checkpoint = policy_argument(args.checkpoint)
+    info: Any = export_policy(checkpoint, args.out, args.env_id, args.online_weights)
     print(json.dumps({"out": args.out, "sidecar": str(sidecar_path(args.out)), **asdict(info)}))
     return 0

@@ -36,6 +36,8 @@ from robogym_ray.text import first_sentence
 
 CHECKPOINT_NAME = "learner.pt"
 """The learner's checkpoint in a run's ``checkpoints/`` folder."""
+RUN_CHECKPOINT = f"checkpoints/{CHECKPOINT_NAME}"
+"""The learner's checkpoint in a run's folder (what its summary's ``checkpoint`` names)."""
 BEST_POLICY_NAME = "policy-best.pt"
 """The policy snapshot selection keeps (``--select-episodes``)."""
 REPLAY_SUFFIX = ".replay.npz"

@@ -71,6 +71,35 @@ def test_env_id_comes_from_the_run_directory(tmp_path, capsys) -> None:
     assert load_policy(run / "checkpoints" / "learner.pt").info.env_id == POSITIONING
 
 
+def test_a_run_folder_gives_its_checkpoint(tmp_path, capfd) -> None:
+    """The summary's ``files:`` line names the run's folder: export and evaluate take it (its
+    checkpoint, the file the summary's ``checkpoint`` names) and say which file they took; a
+    folder with no checkpoint is one error line."""
+    run = tmp_path / "run"
+    (run / "checkpoints").mkdir(parents=True)
+    (run / "config.json").write_text(json.dumps({"train": {"task": "positioning"}, "d4pg": {}}))
+    checkpoint = run / "checkpoints" / "learner.pt"
+    save_learner(checkpoint, 15, 6)
+    took = f"{run} is a run folder: using its checkpoint {checkpoint}\n"
+    assert cli_main(["export", str(run), str(tmp_path / "p.pt")]) == 0
+    out, err = capfd.readouterr()
+    assert err == took and json.loads(out)["source"].startswith(str(checkpoint))
+    assert cli_main(["evaluate", str(run), "--episodes", "1", "--max-steps", "2"]) == 0
+    out, err = capfd.readouterr()
+    assert err.startswith(took) and POSITIONING in out  # (then maybe pybullet's banner)
+    assert cli_main(["export", str(run / "checkpoints"), str(tmp_path / "q.pt")]) == 0
+    assert capfd.readouterr().err == took.replace(str(run), str(run / "checkpoints"), 1)
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    for argv in (["export", str(empty), str(tmp_path / "e.pt")], ["evaluate", str(empty)]):
+        assert cli_main(argv) == 2
+        assert capfd.readouterr().err == (
+            f"error: {empty} is a folder with no checkpoint (checkpoints/learner.pt or "
+            "learner.pt): give a run folder, a learner.pt or an exported policy\n"
+        )
+    assert not (tmp_path / "e.pt").exists()
+
+
 def test_a_run_with_a_policy_average_ships_the_average(tmp_path, capsys) -> None:
     run = tmp_path / "run"
     (run / "checkpoints").mkdir(parents=True)
