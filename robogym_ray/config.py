@@ -24,7 +24,7 @@ from functools import cache
 from pathlib import Path
 from typing import Any, TypeVar
 
-from robogym_ray.errors import ConfigError
+from robogym_ray.errors import ConfigError, FieldError
 from robogym_ray.text import MAX_REASON_CHARS, clip_text, did_you_mean, preview
 from robogym_ray.text import quote as quote_name
 
@@ -121,10 +121,15 @@ def add_config_args(
         for name in names:
             f = fields[name]
             default = f.default if f.default is not dataclasses.MISSING else f.default_factory()  # type: ignore[misc]
-            _add_flag(target, "--" + prefix + name.replace("_", "-"), name, hints[name],
+            _add_flag(target, flag_name(name, prefix), name, hints[name],
                       argparse.SUPPRESS if only_given else default,
                       help_text(docs.get(name, ""), default))  # fmt: skip
     return sections
+
+
+def flag_name(field: str, prefix: str = "") -> str:
+    """The command-line flag of a config field: ``envs_per_worker`` -> ``--envs-per-worker``."""
+    return "--" + prefix + field.replace("_", "-")
 
 
 def _add_flag(target: Any, flag: str, dest: str, tp: Any, default: Any, help_: str) -> None:
@@ -152,30 +157,59 @@ def _add_flag(target: Any, flag: str, dest: str, tp: Any, default: Any, help_: s
                             metavar=_METAVARS.get(scalar), help=help_)  # fmt: skip
 
 
-def config_from_args(cls: type[T], args: argparse.Namespace) -> T:
-    """Build ``cls`` from the parsed options that ``add_config_args`` added."""
+def config_from_args(cls: type[T], args: argparse.Namespace, prefix: str = "") -> T:
+    """Build ``cls`` from the parsed options that ``add_config_args`` added (with ``prefix``);
+    a bad value's error names its flag."""
     values = {}
     for f in dataclasses.fields(cls):  # type: ignore[arg-type]
         if f.init and hasattr(args, f.name):
             value = getattr(args, f.name)
             values[f.name] = tuple(value) if isinstance(value, list) else value
+    flags = flags_of(values, prefix)
     # argparse converted each flag already; this catches what its converters let through (nan).
-    check_fields(cls, values, cls.__name__)
+    check_fields(cls, values, cls.__name__, flags)
     try:
         return cls(**values)
+    except FieldError as exc:
+        raise _flagged(exc, flags) or exc from None
     except (TypeError, ValueError) as exc:
         raise ConfigError(clip_text(str(exc), MAX_REASON_CHARS)) from None
 
 
+def flags_of(fields: Iterable[str], prefix: str = "") -> dict[str, str]:
+    """``{field: its flag}`` for ``fields`` given on a command line (``merge_config``'s
+    ``flags``)."""
+    return {name: flag_name(name, prefix) for name in fields}
+
+
+def _flagged(exc: FieldError, flags: Mapping[str, str]) -> ConfigError | None:
+    """``exc`` worded for the command line (``--workers 0: expected >= 1``) when its field came
+    from a flag, else None."""
+    flag = flags.get(exc.field)
+    return ConfigError(f"{flag} {exc.shown}: expected {exc.expected}") if flag else None
+
+
 def merge_config(
-    cls: type[T], values: Mapping[str, Any], source: str = "config", base: T | None = None
+    cls: type[T],
+    values: Mapping[str, Any],
+    source: str = "config",
+    base: T | None = None,
+    flags: Mapping[str, str] | None = None,
 ) -> T:
     """``cls(**values)`` (``base`` with ``values`` replaced, when given) with clear errors for
-    unknown fields and bad values; JSON lists become tuples. The one place configs merge."""
-    check_fields(cls, values, f"{source}: {cls.__name__}")
+    unknown fields and bad values; JSON lists become tuples. The one place configs merge.
+
+    ``flags``: ``{field: flag}`` of the values given on the command line (``flags_of``): an
+    error about one of them names the flag (``--workers 0: expected >= 1``), not the field.
+    """
+    flags = flags or {}
+    check_fields(cls, values, f"{source}: {cls.__name__}", flags)
     try:
         values = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()}
         return cls(**values) if base is None else dataclasses.replace(base, **values)  # type: ignore[type-var]
+    except FieldError as exc:
+        where = ConfigError(f"{source}: invalid {cls.__name__}: {exc}")
+        raise _flagged(exc, flags) or where from None
     except (TypeError, ValueError) as exc:
         reason = clip_text(str(exc), MAX_REASON_CHARS)
         raise ConfigError(f"{source}: invalid {cls.__name__}: {reason}") from None
@@ -262,9 +296,12 @@ def check_keys(keys: Iterable[object], known: Collection[str], where: str, what:
         )
 
 
-def check_fields(cls: type, values: Mapping[str, Any], where: str) -> None:
+def check_fields(
+    cls: type, values: Mapping[str, Any], where: str, flags: Mapping[str, str] | None = None
+) -> None:
     """ConfigError naming the first key of ``values`` that is no field of the dataclass ``cls``
-    or whose value is not of the field's annotated type (``where``: e.g. ``FILE: train``).
+    or whose value is not of the field's annotated type (``where``: e.g. ``FILE: train``; a key
+    in ``flags`` is named by its flag instead).
 
     Checked from the annotations, so every config class gets it, before its ``__post_init__``
     compares values (``"seed": "abc"`` would otherwise fail deep inside a worker)."""
@@ -272,7 +309,20 @@ def check_fields(cls: type, values: Mapping[str, Any], where: str) -> None:
     check_keys(values, types_, where, "field(s)")
     for key, value in values.items():
         if not _fits(types_[key], value):
-            raise ConfigError(f"{where}.{key} = {quote(value)}; expected {_describe(types_[key])}")
+            expected = _describe(types_[key])
+            if flags and key in flags:
+                raise ConfigError(f"{flags[key]} {quote(value)}: expected {expected}")
+            raise ConfigError(f"{where}.{key} = {quote(value)}; expected {expected}")
+
+
+def check_ranges(owner: str, checks: Iterable[tuple[bool, str, object, str]]) -> None:
+    """FieldError for the first of ``checks`` that fails, each ``(ok, field, value, expected)``:
+    ``Owner.field=VALUE; expected ...`` (a config class's ``__post_init__``)."""
+    for ok, name, value, expected in checks:
+        if not ok:
+            shown = quote(value)
+            raise FieldError(f"{owner}.{name}={shown}; expected {expected}", field=name,
+                             shown=shown, expected=expected)  # fmt: skip
 
 
 def read_json(path: str | os.PathLike, what: str = "config file") -> Any:

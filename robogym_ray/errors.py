@@ -15,6 +15,22 @@ class ConfigError(RoboGymRayError, ValueError):
     """A configuration value (CLI flag, config file, launch argument) is malformed."""
 
 
+class FieldError(ConfigError):
+    """A config field's value out of its range (``config.check_ranges``). Its parts let a
+    command line name the flag the value came from instead of the field
+    (``config.merge_config``); ``__init__`` takes the message alone, as Ray's pickling wants.
+
+    Attributes:
+        field: the config field, e.g. ``workers``.
+        shown: its value, quoted for one line.
+        expected: what it should have been, e.g. ``>= 1``.
+    """
+
+    def __init__(self, message: str, *, field: str = "", shown: str = "", expected: str = ""):
+        super().__init__(message)
+        self.field, self.shown, self.expected = field, shown, expected
+
+
 class UnknownRobotError(ConfigError):
     """A robot, scene, task or mode name that no registry knows."""
 

@@ -64,7 +64,7 @@ def run(args: argparse.Namespace) -> int:
         port=cfg.port,
         real_time=cfg.real_time,
         token=token,
-        emulation=config_from_args(EmulationConfig, args) if cfg.emulate_hardware else None,
+        emulation=config_from_args(EmulationConfig, args, "emu-") if cfg.emulate_hardware else None,
     )
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):

@@ -321,4 +321,24 @@ def test_one_line_in_a_fresh_process(tmp_path: Path) -> None:
 def test_nan_from_the_command_line_is_refused(tmp_path: Path, capfd: pytest.CaptureFixture) -> None:
     # argparse's float() takes "nan", and NaN passes any `x > 0` written as `not x <= 0`.
     line = train_fails(capfd, tmp_path / "runs", "--max-wall-s", "nan")
-    assert "max_wall_s = nan; expected a number (not NaN) or null" in line
+    assert line == "error: --max-wall-s nan: expected a number (not NaN) or null"
+
+
+def test_a_bad_value_names_its_flag_or_its_file(
+    tmp_path: Path, capfd: pytest.CaptureFixture
+) -> None:
+    """A value given as a flag is named by its flag (it read TrainConfig.workers=0); one from a
+    config file keeps naming the file and the field."""
+    runs = tmp_path / "runs"
+    expected = "expected >= 1 with no real robot"
+    assert train_fails(capfd, runs, "--workers", "0") == f"error: --workers 0: {expected}"
+    line = train_fails(capfd, runs, "--learner-cpus", "0")
+    assert line == "error: --learner-cpus 0.0: expected > 0"
+    line = train_fails(capfd, runs, "--emulated-workers", "1", "--emu-latency-ticks", "-1")
+    assert line == "error: --emu-latency-ticks -1: expected >= 0"
+    config = tmp_path / "c.json"
+    config.write_text(json.dumps({"train": {"workers": 0}}))
+    line = train_fails(capfd, runs, "--config", str(config))
+    assert line == f"error: {config}: invalid TrainConfig: TrainConfig.workers=0; {expected}"
+    line = fails(capfd, "serve", "--emulate-hardware", "--emu-latency-ticks", "-1")
+    assert line == "error: --emu-latency-ticks -1: expected >= 0"  # other commands' flags too

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from robogym_ray.errors import ConfigError
+from robogym_ray.config import check_ranges
 
 COMPILE_MODES = ("", "default", "reduce-overhead", "max-autotune")
 
@@ -188,6 +188,4 @@ class D4PGConfig:
                 " or ".join(repr(m) for m in COMPILE_MODES),
             ),
         ]
-        for ok, name, value, expected in checks:
-            if not ok:
-                raise ConfigError(f"D4PGConfig.{name}={value!r}; expected {expected}")
+        check_ranges("D4PGConfig", checks)

@@ -34,6 +34,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from robogym_ray.config import check_ranges
 from robogym_ray.errors import ConfigError
 from robogym_ray.robots.base import RobotArguments, SimRobot, StateRequest, StateSnapshot
 from robogym_ray.robots.card import EmulationHooks, RobotCard
@@ -64,18 +65,15 @@ class EmulationConfig:
     """Seed of the noise; None = the server's seed."""
 
     def __post_init__(self) -> None:
-        for name in ("laser_noise_sigma", "joint_noise_sigma"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value >= 0):
-                raise ConfigError(f"EmulationConfig.{name} = {value}; expected finite and >= 0")
-        for name in ("velocity_scale", "acceleration_scale"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and 0 < value <= 2):
-                raise ConfigError(f"EmulationConfig.{name} = {value}; expected in (0, 2]")
-        if self.latency_ticks < 0:
-            raise ConfigError(f"EmulationConfig.latency_ticks = {self.latency_ticks}; need >= 0")
-        if not math.isfinite(self.actuation_bias):
-            raise ConfigError(f"EmulationConfig.actuation_bias = {self.actuation_bias}; not finite")
+        sigmas = ("laser_noise_sigma", "joint_noise_sigma")
+        scales = ("velocity_scale", "acceleration_scale")
+        v = {name: getattr(self, name) for name in (*sigmas, *scales)}
+        check_ranges("EmulationConfig", [
+            *((math.isfinite(v[n]) and v[n] >= 0, n, v[n], "finite and >= 0") for n in sigmas),
+            *((math.isfinite(v[n]) and 0 < v[n] <= 2, n, v[n], "in (0, 2]") for n in scales),
+            (self.latency_ticks >= 0, "latency_ticks", self.latency_ticks, ">= 0"),
+            (math.isfinite(self.actuation_bias), "actuation_bias", self.actuation_bias, "finite"),
+        ])  # fmt: skip
 
 
 class EmulatedRobot(SimRobot):

@@ -14,6 +14,7 @@ from robogym_ray.config import (
     check_dir_path,
     check_fields,
     check_keys,
+    flags_of,
     merge_config,
     quote,
     read_json,
@@ -120,11 +121,13 @@ def build_config(args: argparse.Namespace) -> TrainSetup:
     train, emu = _given(args, TrainConfig), _given(args, EmulationConfig)
     source = train.get("config") or "command line"
     data = read_sections(source) if train.get("config") else {}
-    return TrainSetup(
-        train=merge_config(TrainConfig, {**data.get("train", {}), **train}, source=source),
+    return TrainSetup(  # an error about a value given as a flag names the flag
+        train=merge_config(TrainConfig, {**data.get("train", {}), **train}, source,
+                           flags=flags_of(train)),
         d4pg=dict(data.get("d4pg", {})),
-        emulation=merge_config(EmulationConfig, {**data.get("emulation", {}), **emu}, source),
-    )
+        emulation=merge_config(EmulationConfig, {**data.get("emulation", {}), **emu}, source,
+                               flags=flags_of(emu, "emu-")),
+    )  # fmt: skip
 
 
 def check_inputs(setup: TrainSetup) -> None:

@@ -4,8 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from robogym_ray.config import check_address, check_ray_address, quote
-from robogym_ray.errors import ConfigError
+from robogym_ray.config import check_address, check_ranges, check_ray_address
 
 SIM_PATHS = ("inprocess", "grpc")
 
@@ -223,7 +222,8 @@ class TrainConfig:
             (0.0 <= self.revisit_failed <= 1.0, "revisit_failed", "in [0, 1]"),
             (self.revisit_pool >= 1, "revisit_pool", ">= 1"),
             (self.revisit_max >= 1, "revisit_max", ">= 1"),
-            (self.worker_cpus > 0 and self.learner_cpus > 0, "worker_cpus/learner_cpus", "> 0"),
+            (self.worker_cpus > 0, "worker_cpus", "> 0"),
+            (self.learner_cpus > 0, "learner_cpus", "> 0"),
             (self.server_cpus > 0, "server_cpus", "> 0"),
             (self.evaluator_cpus > 0, "evaluator_cpus", "> 0"),
             (self.batch_per_worker >= 0, "batch_per_worker", ">= 0"),
@@ -234,10 +234,8 @@ class TrainConfig:
             (self.learner_gpus >= -1, "learner_gpus", ">= 0, or -1 for one if there is any"),
             (bool(self.logdir), "logdir", "a directory name"),
         ]
-        for ok, name, expected in checks:
-            if not ok:
-                value = quote(getattr(self, name.split("/")[0]))
-                raise ConfigError(f"TrainConfig.{name}={value}; expected {expected}")
+        check_ranges("TrainConfig", ((ok, name, getattr(self, name), expected)
+                                     for ok, name, expected in checks))  # fmt: skip
         for address in self.real_robot:
             check_address(address, "--real-robot")
         if self.address is not None:
