@@ -342,3 +342,10 @@ def test_a_bad_value_names_its_flag_or_its_file(
     assert line == f"error: {config}: invalid TrainConfig: TrainConfig.workers=0; {expected}"
     line = fails(capfd, "serve", "--emulate-hardware", "--emu-latency-ticks", "-1")
     assert line == "error: --emu-latency-ticks -1: expected >= 0"  # other commands' flags too
+
+
+def test_resume_needs_the_run_name_to_resume(tmp_path: Path, capfd: pytest.CaptureFixture) -> None:
+    """Without --run-name, --resume would name a new, empty folder (a default name)."""
+    line = train_fails(capfd, tmp_path / "runs", "--task", "pendulum", "--resume")
+    assert line == ("error: --resume without --run-name: expected the --run-name of the run to "
+                    "resume (without one, a new, empty folder)")  # fmt: skip
