@@ -10,6 +10,8 @@ median and 90th percentile over all windows of N episodes (episode i resets with
     # and the arm holding still (action 0), what a policy that learned only to spare its
     # action penalty scores
     python experiments/deploy_reach_errors.py --hold --out results/deploy-reach-hold
+    # the reference line: the scripted expert (damped least-squares IK, envs/ur_deploy_expert.py)
+    python experiments/deploy_reach_errors.py --expert --out results/deploy-reach-expert
     # an Isaac Lab export, checked against its IO descriptors first
     python experiments/deploy_reach_errors.py policy.pt --isaac-lab \\
         --io-descriptors IO_descriptors.yaml
@@ -33,8 +35,6 @@ from typing import Any
 import numpy as np
 
 ENV_ID = "RoboGymRay/IsaacDeployReachUR10eSim-v0"
-KEYS = ("window_position_error", "window_rotation_error")
-"""What the env's ``info`` carries at the end of each command window (m, rad)."""
 
 
 def summarize(windows: Sequence[tuple[float, float]]) -> dict[str, Any]:
@@ -53,20 +53,11 @@ def summarize(windows: Sequence[tuple[float, float]]) -> dict[str, Any]:
 def window_errors(
     env: Any, policy: Callable[[np.ndarray], np.ndarray], episodes: int, seed: int
 ) -> list[list[tuple[float, float]]]:
-    """Each episode's window-end errors, from the one greedy-episode loop."""
+    """Each episode's window-end errors (m, rad), from the one greedy-episode loop."""
     from robogym_ray.experience.episodes import greedy_episode
 
-    per_episode = []
-    for i in range(episodes):
-        found: list[tuple[float, float]] = []
-
-        def keep(info: dict[str, Any], found: list[tuple[float, float]] = found) -> None:
-            if KEYS[0] in info:
-                found.append((float(info[KEYS[0]]), float(info[KEYS[1]])))
-
-        greedy_episode(env, policy, seed + i, on_step=keep)
-        per_episode.append(found)
-    return per_episode
+    episodes_run = (greedy_episode(env, policy, seed + i) for i in range(episodes))
+    return [[(p, r) for p, r in ep.window_errors or []] for ep in episodes_run]
 
 
 def load(args: argparse.Namespace, env: Any) -> tuple[Callable[[np.ndarray], np.ndarray], str]:
@@ -76,6 +67,11 @@ def load(args: argparse.Namespace, env: Any) -> tuple[Callable[[np.ndarray], np.
         return (lambda obs: rng.uniform(-1.0, 1.0, env.action_space.shape)), "random"
     if args.hold:  # action 0 (the bounds are symmetric): every target the measured joints
         return (lambda obs: np.zeros(env.action_space.shape)), "hold"
+    if args.expert:  # its actions are the env's, [-1, 1]
+        from robogym_ray.envs.ur_deploy_expert import DeployReachExpert, numpy_policy
+
+        order = getattr(env.unwrapped, "quat_order", "xyzw")
+        return numpy_policy(DeployReachExpert(order)), "expert"
     if args.isaac_lab:
         from robogym_ray.isaac_lab import IsaacLabPolicy
 
@@ -129,6 +125,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("policy", nargs="?", help="learner.pt, exported policy, or Isaac Lab's.")
     parser.add_argument("--random", action="store_true", help="Uniformly random actions.")
     parser.add_argument("--hold", action="store_true", help="Action 0: the arm holds still.")
+    parser.add_argument("--expert", action="store_true", help="The scripted IK expert.")
     parser.add_argument("--isaac-lab", action="store_true", help="POLICY is an Isaac Lab export.")
     parser.add_argument("--io-descriptors", default=None, help="Its IO_descriptors.yaml.")
     parser.add_argument("--env-id", default=ENV_ID, help="The task (default: %(default)s).")
@@ -137,8 +134,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--max-steps", type=int, default=None, help="Step limit (default 720).")
     parser.add_argument("--out", default=None, help="Folder for errors.json.")
     args = parser.parse_args(argv)
-    if args.random + args.hold + (args.policy is not None) != 1:
-        parser.error("give one of POLICY, --random or --hold")
+    if args.random + args.hold + args.expert + (args.policy is not None) != 1:
+        parser.error("give one of POLICY, --random, --hold or --expert")
     kwargs = {} if args.max_steps is None else {"max_steps": args.max_steps}
     env = gym.make(args.env_id, **kwargs)
     try:

@@ -73,8 +73,16 @@ class EvaluationConfig:
     """The policy is an Isaac Lab export (rsl_rl play.py's policy.pt, TorchScript, or
     policy.onnx): raw observations in, raw actions in the env's units out; needs --env-id."""
     io_descriptors: str | None = None
-    """With --isaac-lab: Isaac Lab 3's IO_descriptors.yaml of the policy, checked against the
-    env before the first action; its action term's scale, offset and clip are applied."""
+    """With --isaac-lab: Isaac Lab 3's IO descriptors of the policy (export_IODescriptors.py
+    writes <task>_IO_descriptors.yaml), checked against the env before the first action; its
+    action term's scale, offset and clip are applied."""
+    ema_alpha: float = 1.0
+    """With --isaac-lab: Isaac ROS's action filter, a = alpha x clamped + (1 - alpha) x the
+    last a, in (0, 1]; 1.0 (Isaac ROS's default) is none."""
+    quat_order: str | None = None
+    """With --isaac-lab on a deploy-reach env: the command quaternion's order the policy was
+    trained with, xyzw (Isaac Lab 3, the default) or wxyz (Isaac Lab 2.x, Isaac ROS); the IO
+    descriptors do not say it."""
 
     def __post_init__(self) -> None:
         if self.variant not in ("rob", "sim"):
@@ -85,8 +93,15 @@ class EvaluationConfig:
             raise ConfigError(f"video_episodes must be >= 1, got {self.video_episodes}")
         if self.via_actor and (self.rs_address is None or self.variant != "rob"):
             raise ConfigError("via_actor needs --rs-address and --variant rob")
-        if self.io_descriptors is not None and not self.isaac_lab:
-            raise ConfigError("--io-descriptors describes an Isaac Lab policy: add --isaac-lab")
+        for flag, given in (("--io-descriptors", self.io_descriptors is not None),
+                            ("--ema-alpha", self.ema_alpha != 1.0),
+                            ("--quat-order", self.quat_order is not None)):  # fmt: skip
+            if given and not self.isaac_lab:
+                raise ConfigError(f"{flag} is for an Isaac Lab policy: add --isaac-lab")
+        if not 0.0 < self.ema_alpha <= 1.0:
+            raise ConfigError(f"ema_alpha must be in (0, 1], got {self.ema_alpha}")
+        if self.quat_order not in (None, "xyzw", "wxyz"):
+            raise ConfigError(f"quat_order must be xyzw or wxyz, got {self.quat_order!r}")
         if self.isaac_lab and self.env_id is None:
             raise ConfigError("--isaac-lab needs --env-id: an Isaac Lab policy file names no env")
         if self.rs_address is not None:
@@ -113,11 +128,13 @@ class EpisodeRecord:
     """The end effector's final distance to its target (m), for tasks that report it."""
     rotation_error: float | None = None
     """Its final rotation error (rad), for tasks whose target has an orientation."""
+    window_errors: list[list[float]] | None = None
+    """(position, rotation) at the end of each command window, for tasks that have them."""
 
     def to_dict(self) -> dict[str, Any]:
         record = asdict(self)
         # evaluation.json stays as it was for tasks and runs without these
-        for key in ("path", "obstacles", "position_error", "rotation_error"):
+        for key in ("path", "obstacles", "position_error", "rotation_error", "window_errors"):
             if record[key] is None:
                 del record[key]
         return record
@@ -149,8 +166,21 @@ class EvaluationResult:
             "mean_return": float(np.mean(returns)) if returns else 0.0,
             "mean_length": float(np.mean([e.length for e in self.episodes] or [0])),
             **{f"mean_{k}": v for k, v in means.items() if v is not None},
+            **self.measures(),
             "wall_s": round(self.wall_s, 2),
         }  # fmt: skip
+
+    def measures(self) -> dict[str, float]:
+        """The task's own measures, medians over what it reports: the window-end errors of a
+        task with command windows, else the final errors (none for tasks without either)."""
+        windows = [w for e in self.episodes for w in e.window_errors or []]
+        if windows:
+            found = {"window_position_error": [w[0] for w in windows],
+                     "window_rotation_error": [w[1] for w in windows]}  # fmt: skip
+        else:
+            found = {k: [getattr(e, k) for e in self.episodes if getattr(e, k) is not None]
+                     for k in ("position_error", "rotation_error")}  # fmt: skip
+        return {f"median_{k}": round(float(np.median(v)), 5) for k, v in found.items() if v}
 
     def to_dict(self) -> dict[str, Any]:
         return {**self.summary(), "episodes": [e.to_dict() for e in self.episodes]}
@@ -159,12 +189,13 @@ class EvaluationResult:
         s, n = self.summary(), len(self.episodes)
         cells = [f"{s['counts'][c]} ({100 * s['rates'][c + '_rate']:.0f} %)" for c in CATEGORIES]
         where = self.rs_address or "simulation"
-        return "\n".join([
-            "| env | robot server | episodes | success | collision | timeout | other | "
-            "mean return |",
-            "|---|---|---|---|---|---|---|---|",
-            f"| {self.env_id} | {where} | {n} | {' | '.join(cells)} | {s['mean_return']:.1f} |",
-        ])  # fmt: skip
+        head = ["env", "robot server", "episodes", *CATEGORIES, "mean return"]
+        row = [self.env_id, where, str(n), *cells, f"{s['mean_return']:.1f}"]
+        for key, value in self.measures().items():  # the task's own, where it has any
+            head.append(f"{key.replace('_', ' ')} ({'rad' if 'rotation' in key else 'm'})")
+            row.append(f"{value:.4f}")
+        lines = [head, ["---"] * len(head), row]
+        return "\n".join("| " + " | ".join(line) + " |" for line in lines)
 
 
 def _mean_of(episodes: list[EpisodeRecord], attr: str) -> float | None:
@@ -230,7 +261,7 @@ def run_episodes(
             videos.save(i, seed + i, ep.final_status, ep.frames)
         yield EpisodeRecord(
             i, seed + i, ep.final_status, ep.ret, ep.length, ep.target, ep.path, ep.obstacles,
-            ep.position_error, ep.rotation_error,
+            ep.position_error, ep.rotation_error, ep.window_errors,
         )  # fmt: skip
 
 
@@ -260,6 +291,8 @@ def evaluate(policy_path: str | Path, cfg: EvaluationConfig) -> EvaluationResult
     kwargs: dict[str, Any] = {"token": cfg.token}
     if cfg.max_steps is not None:
         kwargs["max_steps"] = cfg.max_steps
+    if cfg.quat_order is not None:
+        kwargs["isaac_quat_order"] = cfg.quat_order
     if cfg.rs_address:
         env_id = variant_id(env_id, cfg.variant)
         kwargs["rs_address"] = cfg.rs_address
@@ -280,14 +313,19 @@ def evaluate(policy_path: str | Path, cfg: EvaluationConfig) -> EvaluationResult
         videos = None
         if cfg.video:
             kwargs["render_mode"] = "rgb_array"
-        env = gym.make(env_id, **kwargs)
+        try:
+            env = gym.make(env_id, **kwargs)
+        except TypeError as exc:  # the one keyword an env may not take
+            if "isaac_quat_order" not in str(exc):
+                raise
+            raise ConfigError(f"--quat-order: {env_id} observes no Isaac Lab command") from None
         stack.callback(env.close)
         if cfg.video:
             fps = env.metadata["render_fps"]
             videos = EpisodeVideos(cfg.video, min(cfg.video_episodes, cfg.episodes), fps)
         _check_dims(env, *dims, env_id)
-        if cfg.isaac_lab:  # its raw actions onto [-1, 1] by the env's bounds (IO: checked)
-            policy = policy.unit_policy(env)
+        if cfg.isaac_lab:  # behind Isaac ROS's decoder (IO descriptors: checked first)
+            policy = policy.unit_policy(env, cfg.ema_alpha)
         result = EvaluationResult(env_id, cfg.rs_address, label)
         start = time.perf_counter()
         result.episodes = list(run_episodes(policy, env, cfg.episodes, cfg.seed, videos, cfg.paths))

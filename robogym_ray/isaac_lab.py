@@ -9,14 +9,21 @@
   ``[1, M]`` (batch fixed at 1).
 
 Both answer raw actions in the env's own units (IsaacReach: joint offsets before its x0.5
-scale), not [-1, 1] as our own exported policies do. ``IsaacLabPolicy`` maps them onto
-[-1, 1] by the env's action bounds, so the one greedy-episode loop clips them at the env's
-bounds (robo-gym 2.1.0 does not clip them: docs/protocol.md). The ONNX file needs only
-``onnxruntime`` (the ``onnx`` extra), not torch.
+scale), not [-1, 1] as our own exported policies do. The ONNX file needs only ``onnxruntime``
+(the ``onnx`` extra), not torch.
 
-With Isaac Lab 3's ``IO_descriptors.yaml`` beside it (``io_descriptors``), the file is checked
-against the env before the first action (``robogym_ray.envs.io_descriptors``) and its action term's
-scale, offset and clip are what turns the network's output into the joint command.
+The network's output reaches the env through Isaac ROS's action decoder
+(``isaac_manipulator_ur_dnn_policy``), step by step (``IsaacRosDecoder``):
+
+1. **clamp** to the env's action bounds ([-1, 1] for the deploy reach, as Isaac ROS clamps;
+   robo-gym 2.1.0 does not clamp IsaacReach's: docs/protocol.md);
+2. **EMA**, optional: ``a_t = alpha x clamped + (1 - alpha) x a_t-1`` (alpha 1.0, Isaac ROS's
+   default: none), from zero at each episode's start;
+3. **scale** (and offset, clip) by the action term of Isaac Lab 3's ``IO_descriptors.yaml``
+   when one is given (``io_descriptors``: checked against the env before the first action,
+   ``robogym_ray.envs.io_descriptors``), else by the env's own action map;
+4. **stream**: the env sends the target (deploy reach: measured joints + 0.0625 x a_t) to the
+   robot server, one per step at the env's rate (60 Hz, the servo holding each until the next).
 """
 
 from __future__ import annotations
@@ -27,6 +34,7 @@ from typing import Any
 
 import numpy as np
 
+from robogym_ray.envs.io_descriptors import ActionMap, IOContract
 from robogym_ray.envs.io_descriptors import check as check_io
 from robogym_ray.envs.io_descriptors import load as io_descriptors_load
 from robogym_ray.errors import ConfigError
@@ -69,15 +77,12 @@ class IsaacLabPolicy:
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         return self._run(np.asarray(obs, dtype=np.float32).reshape(1, -1)).reshape(-1)
 
-    def unit_policy(self, env: Any) -> Any:
-        """This policy for the greedy-episode loop, which takes actions in [-1, 1]. With IO
-        descriptors, first the check against ``env`` (ConfigError on a mismatch, before any
-        action); then each output goes through the file's action term and back into the env's
-        action units (``(processed - env offset) / env scale``)."""
-        low = env.action_space.low.astype(np.float64)
-        high = env.action_space.high.astype(np.float64)
+    def unit_policy(self, env: Any, ema_alpha: float = 1.0) -> IsaacRosDecoder:
+        """This policy behind Isaac ROS's decoder, for the greedy-episode loop (actions in
+        [-1, 1]). With IO descriptors, first the check against ``env`` (ConfigError on a
+        mismatch, before any action)."""
         if self.io is None:
-            return lambda obs: from_env_action(self(obs), low, high)
+            return IsaacRosDecoder(self, env, None, ema_alpha)
         env_id = env.spec.id if env.spec is not None else type(env.unwrapped).__name__
         declare = getattr(env.unwrapped, "isaac_io", None)
         if declare is None:
@@ -86,15 +91,46 @@ class IsaacLabPolicy:
                 "works with the IsaacReachUR10 and IsaacDeployReachUR10e ids"
             )
         contract = declare()
-        action_map = check_io(self.io, contract, env_id)
-        env_offset = np.asarray(contract.action.offset, dtype=np.float64)
-        scale = contract.action.scale
+        return IsaacRosDecoder(
+            self, env, (check_io(self.io, contract, env_id), contract), ema_alpha
+        )
 
-        def act(obs: np.ndarray) -> np.ndarray:
-            raw = (action_map.processed(self(obs)) - env_offset) / scale
-            return from_env_action(raw, low, high)
 
-        return act
+class IsaacRosDecoder:
+    """Isaac ROS's action decoder in front of the greedy-episode loop (the module docstring):
+    clamp, EMA, the IO descriptors' action term, back onto the loop's [-1, 1].
+
+    Args:
+        policy: raw observations -> raw actions.
+        env: the env (its action bounds).
+        io: the checked action map and the env's IO contract, or None (the env's own map).
+        ema_alpha: the filter's weight of the newest action, in (0, 1]; 1.0 is none.
+    """
+
+    def __init__(
+        self, policy: Any, env: Any, io: tuple[ActionMap, IOContract] | None, ema_alpha: float
+    ) -> None:
+        if not 0.0 < ema_alpha <= 1.0:
+            raise ConfigError(f"ema_alpha must be in (0, 1], got {ema_alpha!r}")
+        self.policy, self.io, self.alpha = policy, io, float(ema_alpha)
+        self.low = env.action_space.low.astype(np.float64)
+        self.high = env.action_space.high.astype(np.float64)
+        self.last = np.zeros_like(self.low)
+
+    def reset(self) -> None:
+        """A new episode: the filter starts from zero (the greedy loop calls this)."""
+        self.last = np.zeros_like(self.low)
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        action = np.clip(self.policy(obs), self.low, self.high)
+        if self.alpha < 1.0:
+            action = self.alpha * action + (1.0 - self.alpha) * self.last
+        self.last = action
+        if self.io is not None:  # the file's term, then back into the env's action units
+            action_map, contract = self.io
+            offset = np.asarray(contract.action.offset, dtype=np.float64)
+            action = (action_map.processed(action) - offset) / contract.action.scale
+        return from_env_action(action, self.low, self.high)
 
 
 def _load_torchscript(path: Path) -> tuple[Any, int, int]:

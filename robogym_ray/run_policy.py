@@ -10,8 +10,10 @@ Isaac Lab export (``--isaac-lab``: rsl_rl ``play.py``'s ``policy.pt`` or ``polic
     robogym-ray run-policy --isaac-lab policy.onnx --env-id RoboGymRay/IsaacReachUR10Rob-v0 \\
         --rs-address ROBOT:50051 --token T --via-actor                # the robot, filtered
 
-``--io-descriptors IO_descriptors.yaml`` (Isaac Lab 3) checks the policy against the env before
-the first action and applies its action term's scale, offset and clip (docs/isaac-lab.md).
+An Isaac Lab policy's outputs reach the env through Isaac ROS's decoder (clamp, optional EMA
+``--ema-alpha``, scale, stream: ``robogym_ray.isaac_lab``); ``--io-descriptors`` (Isaac Lab 3's
+``<task>_IO_descriptors.yaml``) checks the policy against the env before the first action and
+gives the scale, offset and clip (docs/isaac-lab.md).
 
 Without ``--rs-address`` the task's Sim variant runs in this process; with it, the robot server
 at that address (real or ``serve --emulate-hardware``) is driven through the Rob variant, and
@@ -28,8 +30,17 @@ from robogym_ray.evaluation import EvaluationConfig, evaluate, report
 from robogym_ray.export import sidecar_path
 from robogym_ray.storage import local_file
 
+DESCRIPTION = """Drive a robot with a policy file, as on the robot PC. POLICY is one of ours
+exported with `robogym-ray export` (its .json beside it) or, with --isaac-lab, an Isaac Lab
+export (play.py's policy.pt or policy.onnx), whose outputs pass Isaac ROS's decoder (clamp,
+--ema-alpha, scale, stream). The episodes, options, table and JSON are those of `robogym-ray
+evaluate`; what differs is the input: evaluate also reads a training run's folder or learner.pt
+(policy and env id from the run), run-policy only a file that stands alone, so nothing of a
+training run need be on the robot PC. Neither starts Ray unless --via-actor."""
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.description = DESCRIPTION
     parser.add_argument("policy_file", nargs="?", metavar="POLICY", help="The policy file.")
     parser.add_argument("--policy", default=None, help="The policy file (same as POLICY).")
     add_config_args(parser, EvaluationConfig)

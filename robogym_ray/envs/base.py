@@ -88,6 +88,9 @@ class RobotServerEnv(gym.Env[np.ndarray, np.ndarray]):
     max_episode_steps: int = 500
     limit_status: ClassVar[str] = MAX_STEPS
     """``final_status`` when the step limit ends an episode."""
+    needs_arguments: ClassVar[bool] = False
+    """Refuse a server that does not answer GetArguments (a task whose semantics robo-gym's
+    servers cannot give, so taking one on trust would silently run another task)."""
 
     def __init__(
         self,
@@ -311,6 +314,13 @@ class RobotServerEnv(gym.Env[np.ndarray, np.ndarray]):
         ask = getattr(client, "get_arguments", None)
         args = ask() if ask is not None else None
         if args is None:
+            if ask is not None and self.needs_arguments:
+                address = getattr(self.client, "address", "?")
+                raise ConfigError(
+                    f"{type(self).__name__}: the robot server at {address} does not answer "
+                    f"GetArguments, so nothing says it runs {self._mode_needed()}; this task "
+                    "needs a server that reports it (robogym-ray serve does)"
+                )
             return
         options = self.server_spec()[2]
         wrong: dict[str, tuple[str, str]] = {}  # name: (what the server runs, what is needed)
@@ -329,6 +339,10 @@ class RobotServerEnv(gym.Env[np.ndarray, np.ndarray]):
                 f"{type(self).__name__}: the robot server at {address} runs {runs}, this task "
                 f"needs {needs} ({restart_hint({k: want for k, (_, want) in wrong.items()})})"
             )
+
+    def _mode_needed(self) -> str:
+        options = self.server_spec()[2]
+        return " and ".join(f"{k} {options[k]}" for k in ("action_mode", "rs_mode") if k in options)
 
     def _disconnect(self) -> None:
         if self.client is not None:

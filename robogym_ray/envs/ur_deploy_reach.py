@@ -8,6 +8,9 @@ positions, no last action, a relative action from the *measured* joints, 60 Hz, 
 with a new pose command every 4 s, the command in UR's ``base`` frame for ``wrist_3_link``, and
 a keypoint reward. Target sampling is ``pose_targets``'s box draw (Isaac Lab's
 ``UniformPoseCommand``: ``quat_from_euler_xyz``, which scipy's "xyz" reproduces sign and all).
+The arm is actuated as there and as Isaac ROS deploys it: one joint target per step, streamed to
+a PD servo (the UR server's ``action_mode:=servo_pos``, ``robots/ur/servo.py``), not robo-gym's
+trajectories.
 """
 
 from __future__ import annotations
@@ -17,7 +20,6 @@ from collections.abc import Mapping
 from typing import Any, ClassVar
 
 import numpy as np
-from gymnasium import spaces
 from scipy.spatial.transform import Rotation
 
 from robogym_ray.envs.base import StepInfo
@@ -30,8 +32,8 @@ from robogym_ray.envs.ur_modular import UR2Arm
 from robogym_ray.errors import ConfigError
 from robogym_ray.protocol import robot_server_pb2 as pb
 from robogym_ray.protocol.client import RobotServerClient
-from robogym_ray.robots.ur.controller import MIN_DURATION
-from robogym_ray.robots.ur.geometry import JOINT_NAMES, UR_MODELS
+from robogym_ray.robots.ur.geometry import JOINT_NAMES
+from robogym_ray.robots.ur.servo import PARAMS as SERVO_PARAMS
 
 PI = math.pi
 KEYPOINTS = np.array(
@@ -45,6 +47,15 @@ TRACKING_WEIGHT, EXP_WEIGHT, ACTION_WEIGHT = -1.5, 1.5, -0.005
 EXP_COEFFS = ((50.0, 1e-4), (300.0, 1e-4), (5000.0, 1e-4))
 """``keypoint_command_error_exp``'s ``(a, b)``: ``1 / (exp(a d) + b + exp(-a d))`` each."""
 QUAT_ORDERS = ("xyzw", "wxyz")
+SERVO_MODE = "servo_pos"
+"""The UR server's action mode that streams joint targets to a PD servo."""
+ACTUATOR_RANDOMISATION = {
+    "stiffness_scale": ("scale", 0.9, 1.1),
+    "damping_scale": ("scale", 0.75, 1.5),
+    "friction": ("add", 0.0, 0.1),
+}
+"""Isaac Lab's reset events on the arm (``reach_env_cfg.py``: ``randomize_actuator_gains``,
+``randomize_joint_parameters``), one draw per joint, as the servo's SetState params."""
 
 
 def keypoint_error(
@@ -72,18 +83,19 @@ MAX_KEYPOINT_ERROR = 3.4
 the frames' origins are at most 2.5 m apart, and a keypoint 0.45 m out adds at most 0.9 m."""
 
 
-def action_high(max_velocity: np.ndarray, scale: float = 0.0625) -> np.ndarray:
-    """The action bounds: offsets that move each joint at up to its speed limit (see the class)."""
-    return np.asarray(max_velocity, dtype=np.float64) * MIN_DURATION / scale
+ACTION_HIGH = np.ones(6)
+"""The action bounds: Isaac ROS clamps every action to [-1, 1] before scaling it."""
 
 
-def step_reward_range(action_high: np.ndarray, rate: float = 60.0) -> tuple[float, float]:
+def step_reward_range(
+    action_high: np.ndarray = ACTION_HIGH, rate: float = 60.0
+) -> tuple[float, float]:
     """The bounds of one step's reward for actions within ``+-action_high``.
 
     Best: on target, no action (three exponential terms of 1 / (2 + b) each). Worst: ``d`` at
     ``MAX_KEYPOINT_ERROR`` and every action at a bound with the sign flipped from the step
-    before, so ``|a|^2 + |a - a_prev|^2 = 5 |a|^2``. The action terms dominate: with the
-    UR10e's bounds they are ~95 % of the worst step.
+    before, so ``|a|^2 + |a - a_prev|^2 = 5 |a|^2``. Within [-1, 1] the tracking term
+    dominates (the action terms are 3 % of the worst step).
     """
     best = EXP_WEIGHT * sum(1.0 / (2.0 + b) for _, b in EXP_COEFFS)
     squares = float(np.sum(np.square(np.asarray(action_high, dtype=np.float64))))
@@ -91,10 +103,10 @@ def step_reward_range(action_high: np.ndarray, rate: float = 60.0) -> tuple[floa
     return worst / rate, best / rate
 
 
-def return_range(discount: float = 0.99, ur_model: str = "ur10e") -> tuple[float, float]:
+def return_range(discount: float = 0.99) -> tuple[float, float]:
     """The bounds of a discounted return (episodes end only by the time limit, so the horizon is
-    1 / (1 - discount)) with the env's action bounds for ``ur_model``."""
-    worst, best = step_reward_range(action_high(UR_MODELS[ur_model].max_velocity))
+    1 / (1 - discount)) with the env's action bounds."""
+    worst, best = step_reward_range()
     horizon = 1.0 / (1.0 - discount)
     return worst * horizon, best * horizon
 
@@ -103,14 +115,14 @@ class IsaacDeployReachUR(PoseTask, UR2Arm):
     """Isaac Lab 3's ``Isaac-Deploy-Reach-UR10e-v0``: track a pose command with ``wrist_3_link``.
 
     ## Action space
-    ``Box((6,), float32)``: joint offsets from the **measured** joints, target = measured +
-    0.0625 x action (rad; order shoulder_pan ... wrist_3; Isaac Lab's
-    ``RelativeJointPositionAction``, ``use_zero_offset``), clipped into the joint limits. The
-    UR server (as robo-gym's ROS bridge) moves to a target along a trajectory of at least 0.5 s,
-    so an offset is a joint speed of offset / 0.5 s: bounds +-``Vmax_j x 0.5 s / 0.0625``
-    (16.76 for the pan and lift joints, 25.13 for the others) span the speeds up to the UR10e's
-    limits (120 and 180 deg/s); an action beyond them asks for more than the arm can do and is
-    clipped to them. 60 actions per second (Isaac Lab: physics 120 Hz, decimation 2).
+    ``Box(-1, 1, (6,), float32)``, clamped there as Isaac ROS clamps: joint offsets from the
+    **measured** joints, target = measured + 0.0625 x action (rad; order shoulder_pan ...
+    wrist_3; Isaac Lab's ``RelativeJointPositionAction``, ``use_zero_offset``), clipped into
+    the joint limits. 60 actions per second (Isaac Lab: physics 120 Hz, decimation 2), each
+    target streamed to the server's PD servo (``action_mode:=servo_pos``: Isaac Lab's UR10e
+    gains, the UR's speed and acceleration limits), held until the next. A joint held ``e``
+    behind its target moves at stiffness / damping x ``e``: at most ~0.9 rad/s for the
+    shoulder and elbow, ~0.4 rad/s for the wrists.
 
     ## Observation space
     ``Box((19,), float32)``; nothing scaled, clipped or noisy.
@@ -140,17 +152,24 @@ class IsaacDeployReachUR(PoseTask, UR2Arm):
     240 steps (``resampling_time`` 4 s), after the step's reward, before its observation:
     position U((0.6375, 1.1375), (-0.35, -0.1), (0.1, 0.3)) m in ``base`` (``base_link`` turned
     pi about z), rotation from roll U(pi +- pi/6), pitch U(+-pi/6), yaw U(-pi/2 +- 2 pi/3).
+    ``randomize_actuators`` (default on, Sim only): each reset draws Isaac Lab's actuator
+    randomisation per joint, stiffness x U(0.9, 1.1), damping x U(0.75, 1.5), friction +
+    U(0, 0.1), after the start pose and the first command.
     Server: the UR10e, ``reference_frame:=base``, ``ee_frame:=wrist_3_link``, 60 Hz, full speed
-    (``max_velocity_scale_factor`` 1.0), ``rs_mode:=only_robot`` (no target object).
+    (``max_velocity_scale_factor`` 1.0), ``rs_mode:=only_robot`` (no target object),
+    ``action_mode:=servo_pos``; the Rob variant refuses a server that reports another action
+    mode through GetArguments, or that does not answer it.
 
     ## Arguments
     ``isaac_quat_order`` ("xyzw", Isaac Lab 3.x; "wxyz", Isaac Lab 2.x and Isaac ROS),
-    ``isaac_scale`` (0.0625), ``resampling_time`` (s), ``ur_model`` (ur10e), those of
+    ``isaac_scale`` (0.0625), ``resampling_time`` (s), ``randomize_actuators`` (True),
+    ``ur_model`` (ur10e), those of
     ``pose_targets.PoseTaskConfig`` and ``ModularArmTask`` but ``fix_<joint>``, and
     ``RobotServerEnv``'s.
     """
 
     metadata: ClassVar[dict[str, Any]] = {**URTask.metadata, "render_fps": 60}
+    needs_arguments = True  # a trajectory server would smear every target over >= 0.5 s
     rs_mode = "only_robot"
     default_joints = (PI, -PI / 2, PI / 2, -PI / 2, -PI / 2, 0.0)
     fixed_by_default = ()
@@ -178,6 +197,7 @@ class IsaacDeployReachUR(PoseTask, UR2Arm):
         isaac_quat_order: str = "xyzw",
         isaac_scale: float = 0.0625,
         resampling_time: float = 4.0,
+        randomize_actuators: bool = True,
         **kwargs: Any,
     ) -> None:
         if isaac_quat_order not in QUAT_ORDERS:
@@ -189,6 +209,7 @@ class IsaacDeployReachUR(PoseTask, UR2Arm):
         if not (math.isfinite(self.scale) and self.scale > 0):
             raise ConfigError(f"isaac_scale must be a positive number, got {isaac_scale!r}")
         self.resampling_time = float(resampling_time)
+        self.randomize_actuators = bool(randomize_actuators)
         self.prev_action = np.zeros(6)
         self.scored_pose = np.zeros(7)
         """The command in force during the last step (the observation may show the next)."""
@@ -201,14 +222,7 @@ class IsaacDeployReachUR(PoseTask, UR2Arm):
             )
         self.window = round(steps)
 
-    # -- spaces ----------------------------------------------------------------------------
-    def _action_space(self) -> spaces.Box:
-        # The UR server turns a target into a trajectory of at least MIN_DURATION (robo-gym's
-        # ROS bridge does), so an offset moves the joint at offset / MIN_DURATION: these bounds
-        # span the joint speeds up to the UR10e's limits, and no further.
-        reach = action_high(self.model.max_velocity, self.scale)
-        return spaces.Box(-reach.astype(np.float32), reach.astype(np.float32), dtype=np.float32)
-
+    # -- spaces (the action space is the arm's [-1, 1]^6) -------------------------------------
     def _obs_bounds(self) -> tuple[list[float], list[float]]:
         widen = self.tolerance * (self.upper - self.lower)
         low = [*(self.lower - widen), *[-np.inf] * 6, *[-np.inf] * 3, *[-1.0] * 4]
@@ -252,7 +266,18 @@ class IsaacDeployReachUR(PoseTask, UR2Arm):
         super()._prepare(options)  # the first command (or the ee_target_pose option)
         self.prev_action = np.zeros(6)
         self.scored_pose = self.target_pose.copy()
-        return {}, {}  # only_robot: the server has no target object to place
+        # only_robot: no target object to place; a real arm's gains are its own
+        return {}, ({} if self.real_robot or not self.randomize_actuators else self._actuator())
+
+    def _actuator(self) -> dict[str, float]:
+        """One draw of Isaac Lab's actuator randomisation, as the servo's SetState params."""
+        params = {}
+        for name, (how, low, high) in ACTUATOR_RANDOMISATION.items():
+            nominal = SERVO_PARAMS[name][0]
+            draw = self.np_random.uniform(low, high, 6)
+            values = nominal * draw if how == "scale" else nominal + draw
+            params.update({f"servo_{name}_{j}": float(v) for j, v in enumerate(values)})
+        return params
 
     def _new_command(self) -> None:
         self.target_pose = sample_target_pose(self.np_random, self.pose_cfg, self.workspace())
@@ -289,5 +314,5 @@ class IsaacDeployReachUR(PoseTask, UR2Arm):
 
     def server_spec(self) -> tuple[str, str | None, dict[str, str]]:
         robot, scene, options = super().server_spec()
-        options.update(reference_frame="base", ee_frame="wrist_3_link")
+        options.update(reference_frame="base", ee_frame="wrist_3_link", action_mode=SERVO_MODE)
         return robot, scene, options

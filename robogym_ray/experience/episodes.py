@@ -13,7 +13,9 @@ from robogym_ray.envs.outcomes import final_status
 from robogym_ray.learner.behaviour import to_env_action
 
 Policy = Callable[[np.ndarray], np.ndarray]
-"""Observation -> action on the policy's [-1, 1] scale (clipped, then mapped to the Box)."""
+"""Observation -> action on the policy's [-1, 1] scale (clipped, then mapped to the Box). A
+policy with state across steps (Isaac ROS's action filter) has a ``reset()``, called before
+each episode."""
 
 
 @dataclass
@@ -34,8 +36,13 @@ class GreedyEpisode:
     """The end effector's distance to its target at the end (m), for tasks that report it."""
     rotation_error: float | None = None
     """Its rotation error at the end (rad), for tasks whose target has an orientation."""
+    window_errors: list[list[float]] | None = None
+    """Tasks with a new command every few seconds (the deploy reach): the (position, rotation)
+    errors at the end of each command window, the task's own measure."""
 
 
+WINDOW_KEYS = ("window_position_error", "window_rotation_error")
+"""What a task with command windows reports at each window's end (m, rad)."""
 ERROR_KEYS = {"position_error": ("dist_coord", "distance"), "rotation_error": ("dist_rot",)}
 """Where tasks put their final errors in ``info``: the arm tasks of robo-gym 2.1.0 and the UR
 positioning task name the distance differently."""
@@ -48,12 +55,14 @@ def greedy_episode(
     *,
     film: bool = False,
     track: bool = False,
-    on_step: Callable[[dict[str, Any]], None] | None = None,
 ) -> GreedyEpisode:
-    """Run one episode of ``policy`` on ``env`` from ``env.reset(seed=seed)``; ``on_step`` sees
-    every step's ``info`` (what a task reports mid-episode, e.g. a command window's errors)."""
+    """Run one episode of ``policy`` on ``env`` from ``env.reset(seed=seed)``, keeping what the
+    task reports mid-episode (a command window's errors) as well as at its end."""
     low = env.action_space.low.astype(np.float64)
     high = env.action_space.high.astype(np.float64)
+    reset = getattr(policy, "reset", None)
+    if reset is not None:
+        reset()
     obs, _ = env.reset(seed=seed)
     task = env.unwrapped
     target = getattr(task, "target", None)
@@ -70,8 +79,9 @@ def greedy_episode(
     while not done:
         action = np.clip(policy(np.asarray(obs, dtype=np.float32)), -1.0, 1.0)
         obs, reward, terminated, truncated, info = env.step(to_env_action(action, low, high))
-        if on_step is not None:
-            on_step(info)
+        if WINDOW_KEYS[0] in info:
+            window = [round(float(info[k]), 5) for k in WINDOW_KEYS]
+            episode.window_errors = [*(episode.window_errors or []), window]
         episode.ret += float(reward)
         episode.length += 1
         done = terminated or truncated

@@ -42,6 +42,9 @@ action cycle of 125 Hz controller ticks, so a rate of 0.001 Hz would make every 
 1,000 s (125,000 ticks); below 1 Hz an arm is not being controlled any more. Rates above the
 controller's 125 Hz are refused by URConfig with their own message."""
 
+ACTION_MODES = ("abs_pos", "delta_pos", "servo_pos")
+"""robo-gym's two trajectory modes, and the streaming servo of Isaac Lab's deploy tasks."""
+
 _HANDLED = frozenset(
     {"world_name", "rs_mode", "action_mode", "reference_frame", "max_velocity_scale_factor",
      "action_cycle_rate", "objects_controller", "n_objects", "ur_model", "ee_frame"}
@@ -61,7 +64,9 @@ class URConfig:
     """only_robot | 1object | 1moving2points | 2objects2points: which state keys are served
     (default as ur_robot_server.launch: rs_mode false -> target_mode only_robot)."""
     action_mode: str = "abs_pos"
-    """abs_pos: actions are absolute joint targets; delta_pos: targets = current + action."""
+    """abs_pos: actions are absolute joint targets; delta_pos: targets = current + action (both
+    followed as robo-gym's trajectories of >= 0.5 s); servo_pos (ours, not robo-gym's): absolute
+    targets streamed to a PD servo that tracks each until the next (``servo.py``)."""
     reference_frame: str = "base_link"
     """base_link, or base (base_link rotated pi about z: x and y negated)."""
     ee_frame: str = "tool0"
@@ -86,7 +91,7 @@ class URConfig:
         _choice("ur_model", self.model, UR_MODELS)
         _choice("scene", self.scene, SCENES)
         _choice("rs_mode", self.rs_mode, RS_MODES)
-        _choice("action_mode", self.action_mode, ("abs_pos", "delta_pos"))
+        _choice("action_mode", self.action_mode, ACTION_MODES)
         _choice("reference_frame", self.reference_frame, ("base_link", "base"))
         _choice("ee_frame", self.ee_frame, CARDS[self.model].geometry.ee_frames)
         option = CARDS[self.model].geometry.base_height_option

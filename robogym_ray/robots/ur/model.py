@@ -4,11 +4,14 @@
 wire                      meaning
 ========================  ==================================================================
 SendAction                6 floats, ROS order [elbow, shoulder_lift, shoulder_pan, wrist_1,
-                          wrist_2, wrist_3]: absolute targets (abs_pos) or deltas (delta_pos),
-                          |value| <= the joint's position limit (+1e-4 for float32 rounding)
+                          wrist_2, wrist_3]: absolute targets (abs_pos, servo_pos) or deltas
+                          (delta_pos), |value| <= the joint's position limit (+1e-4 for
+                          float32 rounding)
 SetState ``state_dict``   the six ``*_joint_position`` goals (else ``state[6:12]``, ROS order);
                           every other known key is ignored, unknown keys are an error
-SetState params           ``object_<i>_function`` + ``object_<i>_*`` floats (``objects``)
+SetState params           ``object_<i>_function`` + ``object_<i>_*`` floats (``objects``);
+                          servo_pos: ``servo_<name>_<j>`` floats, the servo's gains and
+                          friction for the episode (``servo.servo_params``)
 GetState                  the rs_mode's exact key set + flat list (``state``); ``ee_to_ref_*``
                           is the launch argument ``ee_frame`` (tool0, or tool1 = tool0 turned
                           by IsaacLab's fixed rotation, ``geometry.TOOL1_RPY``)
@@ -18,6 +21,8 @@ Differences from the ROS/Gazebo server, all deliberate (sim time is free, Gazebo
 
 * The controller is kinematic (``controller``): positions follow the trajectory exactly, joint
   velocities are its derivative, targets beyond a joint limit are clipped to the limit.
+  ``action_mode:=servo_pos`` (ours) tracks streamed targets with a PD servo instead
+  (``servo``), ticked at Isaac Lab's 120 Hz physics step.
 * SetState *places* the arm at the goal (velocity 0) instead of driving it there; the result is
   the same state the ROS server waits for, without the 0.03 rad residual. Objects restart at their
   first sample when SetState returns (ROS lets them run for 20 control periods first).
@@ -28,6 +33,7 @@ Differences from the ROS/Gazebo server, all deliberate (sim time is free, Gazebo
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 
 import numpy as np
@@ -47,6 +53,7 @@ from robogym_ray.robots.ur.geometry import (
     UR_MODELS,
     urdf_path,
 )
+from robogym_ray.robots.ur.servo import PHYSICS_DT, JointServo, nominal_params, servo_params
 from robogym_ray.robots.ur.state import (
     ALL_KEYS,
     N_OBJECTS,
@@ -71,18 +78,19 @@ class URArm(SimArm):
         self.config = config
         self.model = UR_MODELS[config.model]
         self.name = config.model
+        self.servo = config.action_mode == "servo_pos"
+        actuation = config.actuation_cycle
+        if self.servo:  # one tick per physics step: each action cycle in whole steps of <= 1/120 s
+            actuation = config.action_cycle / math.ceil(config.action_cycle / PHYSICS_DT - 1e-9)
         self.handler_config = CommandHandlerConfig(
-            action_cycle=config.action_cycle,
-            actuation_cycle=config.actuation_cycle,
-            repeat=config.repeat,
+            action_cycle=config.action_cycle, actuation_cycle=actuation, repeat=config.repeat
         )
         self.sensor_periods = {}
         self.groups = sensor_groups(config.rs_mode)
         self._target = np.zeros(6)
-        controller = JointTrajectoryController(
-            config.max_velocity_scale_factor * np.asarray(self.model.max_velocity), POSITION_LIMITS
-        )
-        super().__init__(controller, N_OBJECTS[config.rs_mode], seed)
+        vmax = config.max_velocity_scale_factor * np.asarray(self.model.max_velocity)
+        kind = JointServo if self.servo else JointTrajectoryController
+        super().__init__(kind(vmax, POSITION_LIMITS), N_OBJECTS[config.rs_mode], seed)
 
     # -- scene ----------------------------------------------------------------------------------
     def _build_scene(self) -> None:
@@ -133,6 +141,18 @@ class URArm(SimArm):
         return base_link + np.array([0.0, 0.0, self.config.base_height])
 
     # -- state ----------------------------------------------------------------------------------
+    def set_state(self, request: StateRequest) -> None:
+        params = servo_params(request.float_params)  # validated before anything changes
+        if params is not None and not self.servo:
+            raise InvalidStateError(
+                f"SetState servo_* params need action_mode servo_pos; this arm runs "
+                f"{self.config.action_mode} (robo-gym's trajectories have no gains)"
+            )
+        super().set_state(request)
+        if self.servo:  # each SetState starts an episode: absent params mean nominal gains
+            controller: JointServo = self._controller  # type: ignore[assignment]
+            controller.set_gains(**(params or nominal_params()))
+
     def _joint_goal(self, request: StateRequest) -> np.ndarray:
         """The validated joint goal (env order) of a SetState."""
         check_state_keys("UR", request.state_dict, ALL_KEYS, POSITION_KEYS[0])
