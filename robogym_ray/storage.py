@@ -281,6 +281,29 @@ class RunStorage:
             self.delete(rel)
 
 
+STORAGE_MARKER = ".robogym-ray-storage-check"
+"""The start of the names of the files the storage checks write and remove again."""
+
+
+def write_marker(storage: RunStorage, name: str, data: bytes, what: str) -> None:
+    """``data`` as ``name`` under ``storage``, or a one-line ConfigError saying why it cannot be
+    written (``what``: the storage as the user gave it, e.g. ``--storage``): the first step of
+    the storage checks, before anything of a run starts."""
+    try:
+        storage.write_bytes(name, data, "storage check")
+    except (DiskWriteError, ConfigError) as exc:  # ConfigError: a URI pyarrow cannot open
+        why = exc.reason if isinstance(exc, DiskWriteError) and exc.reason else str(exc)
+        raise ConfigError(f"{what} {storage.location()}: cannot write there ({why})") from None
+
+
+def check_writable(storage: RunStorage, what: str = "storage") -> None:
+    """ConfigError unless a file can be written under ``storage`` (one is written and removed
+    again: no run folder is made)."""
+    name = f"{STORAGE_MARKER}-{os.getpid()}"
+    write_marker(storage, name, b"", what)
+    storage.delete(name)
+
+
 def local_file(location: str | os.PathLike, what: str = "file") -> str:
     """A local path to read ``location`` from: a path as it is; an object store's file
     downloaded into a temporary folder, with what readers look for beside it: a checkpoint's

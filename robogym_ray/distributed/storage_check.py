@@ -16,9 +16,7 @@ import ray
 from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
 
 from robogym_ray.errors import ConfigError
-from robogym_ray.storage import RunStorage
-
-MARKER = ".robogym-ray-storage-check"
+from robogym_ray.storage import STORAGE_MARKER, RunStorage, write_marker
 
 
 def _probe(storage: RunStorage, marker: str, token: str, node_id: str) -> str:
@@ -53,9 +51,9 @@ def check_reachable(storage: RunStorage, timeout_s: float = 120.0) -> None:
     nodes = [n for n in ray.nodes() if n.get("Alive")]
     if len(nodes) <= 1:
         return
-    marker = f"{MARKER}-{secrets.token_hex(4)}"
+    marker = f"{STORAGE_MARKER}-{secrets.token_hex(4)}"
     token = secrets.token_hex(16)
-    storage.write_bytes(marker, token.encode(), "storage check marker")
+    write_marker(storage, marker, token.encode(), "storage")  # one line if the driver cannot
     try:
         refs: dict[Any, dict[str, Any]] = {}
         for node in nodes:

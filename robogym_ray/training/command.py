@@ -132,10 +132,11 @@ def build_config(args: argparse.Namespace) -> TrainSetup:
 
 def check_inputs(setup: TrainSetup) -> None:
     """Everything the run reads, checked before Ray starts or its run directory is made: the
-    task, the D4PG settings, the log directory, the local Ray's CPUs and ``--init-from``."""
+    task, the D4PG settings, the log directory, the local Ray's CPUs, ``--init-from`` and that
+    the storage can be written."""
     from robogym_ray.experience.rollout import box_dims, make_gym_env
     from robogym_ray.learner.checkpoint import CHECKPOINT_NAME
-    from robogym_ray.storage import is_uri
+    from robogym_ray.storage import RunStorage, check_writable, is_uri
     from robogym_ray.training import setup as run_setup
     from robogym_ray.training.presets import d4pg_for, resolve_task
 
@@ -162,6 +163,8 @@ def check_inputs(setup: TrainSetup) -> None:
             init_from, label = own, "--resume: the run's checkpoint"
     # The file first: probing the env below imports pybullet, whose banner goes to stderr.
     state = run_setup.read_init_from(init_from, label) if init_from else None
+    # A file written and removed at the root (made if missing, left empty by a refusal below).
+    check_writable(RunStorage(root), "--storage" if cfg.storage else "--logdir")
     probe = make_gym_env(preset.env_id)()  # dimensions only: it never resets, so no server
     try:
         obs_dim, act_dim = box_dims(probe)

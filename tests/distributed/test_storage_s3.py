@@ -123,6 +123,16 @@ def test_storage_files_on_s3_and_on_a_path(s3: Any, tmp_path: Path) -> None:
     with pytest.raises(ConfigError, match="no such object"):
         local_file(f"s3://{BUCKET}/missing.pt", "policy")
     assert local_file(str(tmp_path / "x.pt")) == str(tmp_path / "x.pt")  # a path as it is
+    # A run folder in a bucket gives its checkpoint (evaluate, export); a file is read as it is.
+    from robogym_ray.export import run_checkpoint
+    from robogym_ray.storage import check_writable
+
+    run = f"s3://{BUCKET}/unit/run"
+    assert run_checkpoint(run) == f"{run}/checkpoints/learner.pt"
+    assert run_checkpoint(f"{run}/checkpoints/learner.pt") is None
+    # The storage check before Ray writes a file at the root and removes it again.
+    check_writable(RunStorage(f"s3://{BUCKET}/unit"), "--storage")
+    assert not [key for key in keys(s3, "unit/") if "storage-check" in key]
 
 
 def test_a_relative_storage_in_a_ray_job_lands_on_the_head(
