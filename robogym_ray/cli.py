@@ -20,6 +20,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "manager": ("robogym_ray.distributed.manager", "Serve robo-gym's server manager (supervised)."),
     "resume": ("robogym_ray.distributed.resume", "Resume a paused real robot (operator)."),
     "train": ("robogym_ray.training.command", "Train D4PG with rollout workers on Ray."),
+    "tasks": ("robogym_ray.training.tasks", "List the training tasks and the env ids."),
     "evaluate": ("robogym_ray.evaluation", "Evaluate a policy for N episodes (success rates)."),
     "export": ("robogym_ray.export", "Export a policy as TorchScript or ONNX, plus JSON."),
     "run-policy": ("robogym_ray.run_policy", "Drive a robot server with an exported policy."),

@@ -15,8 +15,8 @@ class TrainConfig:
     """One distributed D4PG run."""
 
     task: str = "navigation"
-    """Env id (e.g. RoboGymRay/ObstacleAvoidanceMir100Sim-v0) or a preset's short name:
-    navigation, positioning, pendulum, ... (robogym_ray/training/presets.py has them all)."""
+    """A task's short name (navigation, positioning, pendulum, ...) or an env id (e.g.
+    RoboGymRay/ObstacleAvoidanceMir100Sim-v0): `robogym-ray tasks` lists them all."""
     workers: int = 2
     """Simulated rollout workers (each steps --envs-per-worker simulated robots)."""
     envs_per_worker: int = 4

@@ -29,6 +29,8 @@ class TaskPreset:
     env_id: str
     d4pg: Mapping[str, Any] = field(default_factory=dict)
     """D4PGConfig overrides that suit this task's reward scale and horizon."""
+    description: str = ""
+    """One line on what the task is (``robogym-ray tasks`` lists it)."""
 
 
 # Rewards in [-16.3, 0], 200-step truncated episodes: support covers the discounted range;
@@ -66,33 +68,55 @@ _NAVIGATION = {"v_min": -300.0, "v_max": 450.0, "layer_norm": True, "min_replay_
 
 TASKS: dict[str, TaskPreset] = {
     # Navigation: shaping sums to ~50 x start distance (<= ~350), success +100, collision -200.
-    "navigation": TaskPreset("RoboGymRay/ObstacleAvoidanceMir100Sim-v0", _NAVIGATION),
+    "navigation": TaskPreset(
+        "RoboGymRay/ObstacleAvoidanceMir100Sim-v0",
+        _NAVIGATION,
+        "MiR100 crosses the 6 x 8 m lab to a target past three cubes (the paper's problem 1)",
+    ),
     # The same task observing the nearest laser return per sector (envs/mir100_sectors.py).
     "navigation-sectors": TaskPreset(
-        "RoboGymRay/ObstacleAvoidanceSectorsMir100Sim-v0", _NAVIGATION
+        "RoboGymRay/ObstacleAvoidanceSectorsMir100Sim-v0",
+        _NAVIGATION,
+        "navigation, observing the nearest laser return per sector (not robo-gym's observation)",
     ),
     # Positioning: progress 50/m over <= ~2.4 m, +100 at the goal, -200 on collision.
-    "positioning": TaskPreset("RoboGymRay/EndEffectorPositioningUR10Sim-v0", _POSITIONING),
+    "positioning": TaskPreset(
+        "RoboGymRay/EndEffectorPositioningUR10Sim-v0",
+        _POSITIONING,
+        "UR10 brings its end effector to a target point (the paper's problem 2)",
+    ),
     # robo-gym 2.1.0's Panda positioning: the positioning recipe with the critic's support fitted
     # to its much smaller returns (-0.005/m per step over <= 300 steps, +2 at the goal, -1 on
     # collision: within about [-3.3, 2]); +-250 would put them all in ~1 of 51 atoms.
     "panda-positioning": TaskPreset(
-        "RoboGymRay/EndEffectorPositioningPandaSim-v0", _PANDA_POSITIONING
+        "RoboGymRay/EndEffectorPositioningPandaSim-v0",
+        _PANDA_POSITIONING,
+        "Franka Panda brings its hand to a target point (robo-gym 2.1.0); the quickest to learn",
     ),
     # robo-gym 2.1.0's Isaac Lab reach (UR10): the positioning recipe, support fitted to its
     # returns. Steps cost 0.005/m + 0.05/rad (measured over 30 random, zero and bang-bang
     # episodes: -0.161 to -0.027; at most ~-0.167 with pi rad off), success +2 and collision -1
     # end the episode; truncation at 600 steps bootstraps, so the worst value is ~-0.167 x 100
     # (gamma 0.99) = -16.7 and the best +2: [-20, 5] leaves a margin (atoms 0.5 apart).
-    "isaac-reach-ur10": TaskPreset("RoboGymRay/IsaacReachUR10Sim-v0", _ISAAC_REACH),
+    "isaac-reach-ur10": TaskPreset(
+        "RoboGymRay/IsaacReachUR10Sim-v0",
+        _ISAAC_REACH,
+        "UR10 reaches a pose: robo-gym 2.1.0's port of Isaac Lab's Isaac-Reach-UR10-v0",
+    ),
     # Isaac Lab 3's deploy reach (UR10e): its keypoint reward times 1/60 s per step, plus the
     # action and action-rate L2 terms, which dominate at the env's wide bounds; episodes end only
     # by the time limit, so the support is the per-step range times the horizon (see
     # _deploy_reach_support). The first preset, [-6, 4], left out the action terms: its 50-min
     # run's returns (~-26 discounted) lay below the support (results-log.md, 2026-11-26).
-    "isaac-deploy-reach-ur10e": TaskPreset("RoboGymRay/IsaacDeployReachUR10eSim-v0", _DEPLOY_REACH),
+    "isaac-deploy-reach-ur10e": TaskPreset(
+        "RoboGymRay/IsaacDeployReachUR10eSim-v0",
+        _DEPLOY_REACH,
+        "UR10e tracks a pose with 60 Hz joint targets: Isaac Lab 3's Isaac-Deploy-Reach-UR10e-v0",
+    ),
     # Pendulum: the preset proven by benchmarks/pendulum.py (the local trainer applies it too).
-    "pendulum": TaskPreset("Pendulum-v1", _PENDULUM),
+    "pendulum": TaskPreset(
+        "Pendulum-v1", _PENDULUM, "Gymnasium's pendulum swing-up: no robot, a check in minutes"
+    ),
 }
 
 
@@ -108,7 +132,7 @@ def resolve_task(task: str) -> TaskPreset:
     raise ConfigError(
         f"unknown task {task!r}{did_you_mean(task, [*TASKS, *gym.registry])}: use a short name "
         f"({', '.join(TASKS)}) or a registered Gymnasium id, e.g. {TASKS['navigation'].env_id} "
-        "(robogym_ray.envs.ENV_IDS lists ours)"
+        "(robogym-ray tasks lists them)"
     )
 
 
