@@ -19,6 +19,38 @@ from robogym_ray.errors import DiskWriteError
 from robogym_ray.storage import RunStorage
 
 
+def eta_s(
+    done: int, total: int, elapsed_s: float, rate: float | None, max_wall_s: float | None = None
+) -> float | None:
+    """Seconds until the run ends: at ``rate`` steps/s the step total's time, or the wall limit's
+    (``max_wall_s``), whichever comes first; None while neither is known."""
+    by_steps = (total - done) / rate if rate else None
+    if max_wall_s is None:
+        return by_steps
+    by_wall = max(0.0, max_wall_s - elapsed_s)
+    return by_wall if by_steps is None else min(by_steps, by_wall)
+
+
+class ProgressBar(tqdm):
+    """tqdm's bar whose time left is ``eta_s``'s: a run about to reach --max-wall-s says so,
+    not the hour its step total would take."""
+
+    def __init__(self, *args: Any, max_wall_s: float | None = None, **kwargs: Any) -> None:
+        self.max_wall_s = max_wall_s
+        bar = "{l_bar}{bar}| {n_fmt}/{total_fmt} [{elapsed}<{left}, {rate_fmt}{postfix}]"
+        super().__init__(*args, bar_format=bar, **kwargs)
+
+    @property
+    def format_dict(self) -> dict[str, Any]:
+        d = super().format_dict
+        elapsed = d.get("elapsed") or 0.0
+        rate = d.get("rate")
+        if rate is None and elapsed:  # as tqdm's own format_meter falls back
+            rate = (d["n"] - (d.get("initial") or 0)) / elapsed
+        left = eta_s(d["n"], d["total"] or 0, elapsed, rate, self.max_wall_s)
+        return {**d, "left": "?" if left is None else self.format_interval(left)}
+
+
 class RunLogger:
     """Scalars go to ``run_dir`` (one TensorBoard run per experiment); progress to stderr.
 
@@ -34,9 +66,11 @@ class RunLogger:
         progress: bool = True,
         stop: threading.Event | None = None,
         storage: RunStorage | None = None,
+        max_wall_s: float | None = None,
     ) -> None:
         """``storage``: an object store the events are uploaded to from ``run_dir`` (a local
-        staging folder) at every ``write`` and at ``close``; None: ``run_dir`` is their home."""
+        staging folder) at every ``write`` and at ``close``; None: ``run_dir`` is their home.
+        ``max_wall_s``: the run's wall limit, which the progress bar's time left respects."""
         self.run_dir = run_dir
         self.storage = storage
         self.error: DiskWriteError | None = None
@@ -45,7 +79,8 @@ class RunLogger:
         _quiet_tensorboard_threads()
         with self._guarded():
             self.writer = SummaryWriter(log_dir=str(run_dir))
-        self.bar = tqdm(total=total, unit="step", disable=not progress, dynamic_ncols=True)
+        self.bar = ProgressBar(total=total, unit="step", disable=not progress, dynamic_ncols=True,
+                               max_wall_s=max_wall_s)  # fmt: skip
         self._last_write = 0.0
 
     @contextmanager

@@ -130,7 +130,7 @@ class TrainingLoop:
         cfg, p = self.cfg, self.p
         uploads = None if p.storage.is_local else p.storage  # events staged in run_dir
         logger = RunLogger(p.run_dir, total=cfg.total_steps, progress=cfg.progress,
-                           stop=self.stop, storage=uploads)  # fmt: skip
+                           stop=self.stop, storage=uploads, max_wall_s=cfg.max_wall_s)  # fmt: skip
         pending = {self._collect(slot): slot for slot in p.workers}
         learner_calls: deque[Any] = deque()
         self.started = time.perf_counter()
