@@ -22,6 +22,7 @@ from robogym_ray.config import (
 from robogym_ray.errors import ConfigError
 from robogym_ray.learner.config import D4PGConfig
 from robogym_ray.robots.emulation import EmulationConfig
+from robogym_ray.training import ending
 from robogym_ray.training.config import TrainConfig
 
 SECTIONS = {"train": TrainConfig, "d4pg": D4PGConfig, "emulation": EmulationConfig}
@@ -198,15 +199,7 @@ def summary_text(summary: dict[str, Any]) -> str:
     from robogym_ray.training.stats import run_root
 
     root = run_root(summary)
-    done = (
-        f"{summary['env_steps']:,} env steps, {summary['episodes']:,} episodes, "
-        f"{summary['learner_steps']:,} learner steps in {summary['wall_s']:.1f} s."
-    )
-    if summary.get("ended") == "stopped":
-        by = summary.get("stopped_by", "a signal")
-        lines = [f"Stopped early by {by}: {summary['task']} trained {done}"]
-    else:
-        lines = [f"Trained {summary['task']}: {done}"]
+    lines = [ending.first_line(summary)]  # why it ended, and whether it resumed
     if "train/success_rate" in summary:
         # Over the last 100 episodes that were not revisits (RunStats), fewer in a short run.
         counted = min(100, summary["episodes"] - summary.get("revisited_episodes", 0))

@@ -18,7 +18,7 @@ from ray.exceptions import RayTaskError
 from robogym_ray.distributed.remote import node_label
 from robogym_ray.errors import DiskWriteError, RunStoppedError
 from robogym_ray.learner.checkpoint import CHECKPOINT_NAME
-from robogym_ray.training import stats
+from robogym_ray.training import ending, stats
 from robogym_ray.training.program import Program
 from robogym_ray.training.stats import RunStats
 
@@ -42,12 +42,13 @@ def finish(
     failure: RunStoppedError | None = None,
     stopped_by: str | None = None,
     learner_status: dict[str, Any] | None = None,
+    out_of_time: bool = False,
 ) -> dict[str, Any]:
     """Checkpoint (with the replay only under ``save_replay``), write the final scalars and
     the summary; returns the summary. ``failure``: what stopped the run early; it, or one met
     here, is raised after the summary is written. ``stopped_by``: the signal that ended the run
     early (SIGINT, SIGTERM). ``learner_status``: the learner's, when it is not to be asked (a
-    lost learner, killed)."""
+    lost learner, killed). ``out_of_time``: collection stopped at ``max_wall_s``."""
     failure = failure or logger.error
     checkpoint = None
     if failure is None:
@@ -68,6 +69,9 @@ def finish(
     if checkpoint is None and p.storage.exists(kept):
         checkpoint = p.storage.location(kept)  # the last good one, from before the failure
     ended = "failed" if failure is not None else "stopped" if stopped_by else "completed"
+    ended_by = ending.end_reason(failed=failure is not None, stopped_by=stopped_by,
+                                 env_steps=run_stats.env_steps, total_steps=p.cfg.total_steps,
+                                 out_of_time=out_of_time)  # fmt: skip
     summary = stats.summary(
         run_stats, final,
         task=p.preset.env_id, wall_s=round(wall_s, 2), checkpoint=checkpoint,
@@ -89,7 +93,7 @@ def finish(
         # The run's folder once, as logdir: the name every summary has had (stats.run_root).
         server_nodes=p.server_nodes(), logdir=p.storage.location(),
         storage={"node": node_label() if p.storage.is_local else "(object store)"},
-        ended=ended,
+        ended=ended, ended_by=ended_by, resumed=p.cfg.resume,
     )  # fmt: skip
     if stopped_by:
         summary["stopped_by"] = stopped_by

@@ -175,6 +175,7 @@ class TrainingLoop:
             self._check_disk(logger)
             if logger.due(cfg.log_every_s):  # scalars cost a supervisor round trip
                 logger.write(self._scalars(), self.stats.env_steps)
+        out_of_time = self._out_of_time()  # why collection ended, for the summary
         self._drain_learner(learner_calls, block=True, all_=True)
         self._take_replies(wait_s=30.0)
         if isinstance(self.failure, LearnerLostError):  # nothing of the run's to snapshot
@@ -185,7 +186,7 @@ class TrainingLoop:
             self.evals.final(eval_ref, logger, self._wall())  # the final policy, evaluated
             self._check_disk(logger)
         return finish(self.p, self.stats, logger, self._scalars, self._wall, self.failure,
-                      stopped_by=self.stopped_by)  # fmt: skip
+                      stopped_by=self.stopped_by, out_of_time=out_of_time)  # fmt: skip
 
     def _take_replies(self, wait_s: float = 0.0) -> None:
         """Take the answers (and errors) of the calls in ``_replies`` that have finished
@@ -209,11 +210,15 @@ class TrainingLoop:
     def _done(self, in_flight: int = 0) -> bool:
         """Whether collecting should stop: enough steps (counting those in flight), the wall
         budget spent, or a stop asked for (SIGTERM)."""
-        cfg = self.cfg
-        out_of_time = cfg.max_wall_s is not None and self._wall() > cfg.max_wall_s
         return (
-            self.stop.is_set() or out_of_time or self.stats.env_steps + in_flight >= cfg.total_steps
+            self.stop.is_set()
+            or self._out_of_time()
+            or self.stats.env_steps + in_flight >= self.cfg.total_steps
         )
+
+    def _out_of_time(self) -> bool:
+        """Whether the run's wall budget (``max_wall_s``) is spent."""
+        return self.cfg.max_wall_s is not None and self._wall() > self.cfg.max_wall_s
 
     def _wait(self, pending: dict[Any, WorkerSlot]) -> list[Any]:
         """The next finished call; once collecting is done and only real-robot calls remain,

@@ -44,6 +44,7 @@ def test_ctrl_c_stops_the_run_with_its_checkpoint_and_summary(tmp_path: Path) ->
     summary = json.loads((tmp_path / "sig" / "summary.json").read_text())
     assert printed == summary
     assert summary["ended"] == "stopped" and summary["stopped_by"] == "SIGINT"
+    assert summary["ended_by"] == "SIGINT" and not summary["resumed"]
     assert summary["learner_steps"] > 0
     assert int(torch.load(first, weights_only=True)["num_steps"]) == summary["learner_steps"]
 
