@@ -1,10 +1,11 @@
-"""How a run ended (issue 53): ``summary.json``'s ``ended_by`` and ``resumed``, and the short
-summary's first line; older summaries still read as before."""
+"""How a run ended and what it adds up to over its parts (issue 53): ``summary.json``'s
+``ended_by``, ``resumed``, ``this_part`` and ``whole_run``, and the short summary's lines; older
+summaries still read as before."""
 
 from __future__ import annotations
 
 from robogym_ray.training.command import summary_text
-from robogym_ray.training.ending import end_reason
+from robogym_ray.training.ending import end_reason, run_parts
 
 PART = {"env_steps": 1200, "episodes": 6, "learner_steps": 300, "wall_s": 9.5}
 
@@ -23,6 +24,28 @@ def test_why_a_run_ended() -> None:
     assert why(env_steps=40) == "no_workers"
 
 
+def test_a_first_part_is_the_whole_run() -> None:
+    this, whole = run_parts(PART, None, resumed=False)
+    assert this == {"part": 1, **PART}
+    assert whole == {"parts": 1, **PART, "complete": True}
+
+
+def test_a_resumed_part_adds_to_the_earlier_parts() -> None:
+    _, first = run_parts(PART, None, resumed=False)
+    more = {"env_steps": 800, "episodes": 4, "learner_steps": 200, "wall_s": 5.3}
+    this, whole = run_parts(more, {"env_steps": 1200, "whole_run": first}, resumed=True)
+    assert this == {"part": 2, **more}
+    assert whole == {"parts": 2, "env_steps": 2000, "episodes": 10, "learner_steps": 500,
+                     "wall_s": 14.8, "complete": True}  # fmt: skip
+    # A summary from before parts were counted: one part, its own counts.
+    _, whole = run_parts(more, {**PART, "task": "Pendulum-v1"}, resumed=True)
+    assert (whole["parts"], whole["env_steps"], whole["learner_steps"]) == (2, 2000, 500)
+    # The earlier part wrote no summary (killed): its learner steps are known, nothing else.
+    this, whole = run_parts(more, None, resumed=True, first_learner_step=700)
+    assert this["part"] == 2 and whole["learner_steps"] == 900 and whole["env_steps"] == 800
+    assert whole["complete"] is False
+
+
 def short(**facts: object) -> list[str]:
     summary = {"task": "Pendulum-v1", **PART, "restarts": {}, "dropped_steps": 0,
                "robot_errors": 0, "checkpoint": "/r/p/checkpoints/learner.pt",
@@ -35,9 +58,16 @@ def test_the_short_summary_says_why_the_run_ended_and_that_it_resumed() -> None:
     assert short()[0] == f"Trained Pendulum-v1: {done}."  # an older summary, as before
     ended = short(ended_by="total_steps")[0]
     assert ended == f"Trained Pendulum-v1: {done}; ended at --total-steps."
-    lines = short(ended_by="max_wall_s", resumed=True)
+    this, whole = run_parts(PART, None, resumed=False)
+    more = {"env_steps": 800, "episodes": 4, "learner_steps": 200, "wall_s": 5.3}
+    this, whole = run_parts(more, {"whole_run": whole}, resumed=True)
+    lines = short(ended_by="max_wall_s", resumed=True, this_part=this, whole_run=whole,
+                  env_steps=800, learner_steps=500)  # fmt: skip
     assert lines[0] == (
-        f"Trained Pendulum-v1 (resumed): {done}; ended at --max-wall-s, before --total-steps."
+        "Trained Pendulum-v1 part 2 (resumed): 800 env steps, 4 episodes, "
+        "200 learner steps in 5.3 s; ended at --max-wall-s, before --total-steps."
     )
+    assert lines[1] == ("  whole run:   2 parts, 2,000 env steps, 10 episodes, 500 learner steps "
+                        "in 14.8 s")  # fmt: skip
     stopped = short(ended="stopped", stopped_by="SIGINT", ended_by="SIGINT")
     assert stopped[0] == f"Stopped early by SIGINT: Pendulum-v1 trained {done}."

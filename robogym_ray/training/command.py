@@ -199,7 +199,8 @@ def summary_text(summary: dict[str, Any]) -> str:
     from robogym_ray.training.stats import run_root
 
     root = run_root(summary)
-    lines = [ending.first_line(summary)]  # why it ended, and whether it resumed
+    whole = ending.whole_run_line(summary)  # a run in parts (--resume): all of them
+    lines = [ending.first_line(summary), *([whole] if whole else [])]
     if "train/success_rate" in summary:
         # Over the last 100 episodes that were not revisits (RunStats), fewer in a short run.
         counted = min(100, summary["episodes"] - summary.get("revisited_episodes", 0))

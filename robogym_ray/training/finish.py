@@ -9,6 +9,7 @@ the error raised again with what was kept, for the command line's one ``error:``
 from __future__ import annotations
 
 import json
+import logging
 from collections.abc import Callable
 from typing import Any
 
@@ -21,6 +22,8 @@ from robogym_ray.learner.checkpoint import CHECKPOINT_NAME
 from robogym_ray.training import ending, stats
 from robogym_ray.training.program import Program
 from robogym_ray.training.stats import RunStats
+
+log = logging.getLogger(__name__)
 
 
 def disk_error(exc: RayTaskError) -> DiskWriteError | None:
@@ -93,7 +96,7 @@ def finish(
         # The run's folder once, as logdir: the name every summary has had (stats.run_root).
         server_nodes=p.server_nodes(), logdir=p.storage.location(),
         storage={"node": node_label() if p.storage.is_local else "(object store)"},
-        ended=ended, ended_by=ended_by, resumed=p.cfg.resume,
+        ended=ended, ended_by=ended_by, **_parts(p, run_stats, final, wall_s),
     )  # fmt: skip
     if stopped_by:
         summary["stopped_by"] = stopped_by
@@ -109,6 +112,34 @@ def finish(
     if failure is not None:
         raise failure.also(f"{_kept(run_stats, checkpoint)}; summary: {where}")
     return summary
+
+
+def _parts(
+    p: Program, run_stats: RunStats, final: dict[str, float], wall_s: float
+) -> dict[str, Any]:
+    """``resumed``, ``this_part`` and ``whole_run`` (``ending.run_parts``): this part's counts
+    added to the whole run's that the previous part's summary holds."""
+    part = {
+        "env_steps": run_stats.env_steps, "episodes": run_stats.episodes,
+        "learner_steps": max(0, int(final.get("learner/steps", 0)) - p.first_learner_step),
+        "wall_s": round(wall_s, 2),
+    }  # fmt: skip
+    earlier = _earlier_summary(p) if p.cfg.resume else None
+    this_part, whole_run = ending.run_parts(part, earlier, p.cfg.resume, p.first_learner_step)
+    return {"resumed": p.cfg.resume, "this_part": this_part, "whole_run": whole_run}
+
+
+def _earlier_summary(p: Program) -> dict[str, Any] | None:
+    """The summary the run's previous part wrote (read before this part's replaces it); None
+    when there is none, or none that reads as one."""
+    if not p.storage.exists("summary.json"):
+        return None
+    try:
+        earlier = json.loads(p.storage.read_bytes("summary.json"))
+    except (OSError, ValueError) as exc:
+        log.warning("the previous part's summary.json is unreadable (%s): not counted", exc)
+        return None
+    return earlier if isinstance(earlier, dict) else None
 
 
 def _kept(run_stats: RunStats, checkpoint: str | None) -> str:

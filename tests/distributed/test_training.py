@@ -368,15 +368,22 @@ def test_a_run_continues_from_another_runs_checkpoint_and_replay(tmp_path: Path)
     with pytest.raises(ConfigError, match="init-from"):
         run_training(TrainConfig(**common, run_name="third", init_from=str(tmp_path / "x.pt")))
     # The first run, resumed in its own folder until its wall limit: the summary says why each
-    # part ended, and that the second part resumed (issue 53).
+    # part ended, and counts this part and the whole run (issue 53).
     assert first["ended_by"] == "total_steps" and not first["resumed"]
     again = run_training(
         TrainConfig(**common, run_name="first", resume=True, total_steps=10**9, max_wall_s=3.0),
         small,
     )
     assert again["ended"] == "completed" and again["ended_by"] == "max_wall_s" and again["resumed"]
+    assert again["this_part"]["part"] == 2 and again["this_part"]["env_steps"] == again["env_steps"]
+    whole = again["whole_run"]
+    assert whole["parts"] == 2 and whole["complete"]
+    for key in ("env_steps", "episodes", "learner_steps"):
+        assert whole[key] == first["whole_run"][key] + again["this_part"][key], key
+    assert whole["learner_steps"] == again["learner_steps"]  # the learner's own count
     text = train_cmd.summary_text(again)
-    assert "Trained Pendulum-v1 (resumed): " in text and "ended at --max-wall-s" in text
+    assert "Trained Pendulum-v1 part 2 (resumed): " in text and "ended at --max-wall-s" in text
+    assert "  whole run:   2 parts, " in text
 
 
 def test_emulated_workers_train_on_emulated_robots_and_the_evaluator_does_not(
