@@ -14,7 +14,7 @@ median and 90th percentile over all windows of N episodes (episode i resets with
     python experiments/deploy_reach_errors.py --expert --out results/deploy-reach-expert
     # an Isaac Lab export, checked against its IO descriptors first
     python experiments/deploy_reach_errors.py policy.pt --isaac-lab \\
-        --io-descriptors IO_descriptors.yaml
+        --io-descriptors exported/isaac_deploy_reach_ur10e_v0_IO_descriptors.yaml
 
 Writes OUT/errors.json (the summary and every window's errors) and prints the summary as JSON.
 
@@ -127,7 +127,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--hold", action="store_true", help="Action 0: the arm holds still.")
     parser.add_argument("--expert", action="store_true", help="The scripted IK expert.")
     parser.add_argument("--isaac-lab", action="store_true", help="POLICY is an Isaac Lab export.")
-    parser.add_argument("--io-descriptors", default=None, help="Its IO_descriptors.yaml.")
+    parser.add_argument("--io-descriptors", default=None, help="Its IO descriptors (YAML).")
+    parser.add_argument("--quat-order", default="xyzw", choices=("xyzw", "wxyz"),
+                        help="The command quaternion's order the policy takes (wxyz: Isaac Lab "
+                        "2.x).")  # fmt: skip
     parser.add_argument("--env-id", default=ENV_ID, help="The task (default: %(default)s).")
     parser.add_argument("--episodes", type=int, default=100, help="Episodes (default 100).")
     parser.add_argument("--seed", type=int, default=1000, help="Episode i resets with seed + i.")
@@ -136,7 +139,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.random + args.hold + args.expert + (args.policy is not None) != 1:
         parser.error("give one of POLICY, --random, --hold or --expert")
-    kwargs = {} if args.max_steps is None else {"max_steps": args.max_steps}
+    kwargs: dict[str, Any] = {"isaac_quat_order": args.quat_order}
+    if args.max_steps is not None:
+        kwargs["max_steps"] = args.max_steps
     env = gym.make(args.env_id, **kwargs)
     try:
         policy, label = load(args, env)

@@ -76,6 +76,11 @@ class RealRobotClient:
             self._call("send_action_get_state", np.asarray(action, dtype=np.float64).tolist())
         )
 
+    def get_arguments(self) -> pb.Arguments | None:
+        """The server's GetArguments through the actor, so an env checks it via the actor too."""
+        found = self._call("get_arguments")
+        return None if found is None else pb.Arguments(**found, success=True)
+
     def is_paused(self) -> bool:
         return bool(ray.get(self.actor.status.remote()).get("paused", False))
 

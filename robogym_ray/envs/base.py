@@ -308,8 +308,9 @@ class RobotServerEnv(gym.Env[np.ndarray, np.ndarray]):
     def _check_arguments(self, client: Any) -> None:
         """Where the server answers GetArguments, refuse one launched for another task: its
         action rate, rs_mode or action_mode differ from what ``server_spec()`` asks for (a
-        real robot's server is started by hand). Servers without it (robo-gym 2.0.x's, which
-        answer UNIMPLEMENTED) and clients without it (a real-robot actor's) are taken on trust.
+        real robot's server is started by hand; the real-robot actor's client relays the
+        call). Servers without it (robo-gym 2.0.x's, which answer UNIMPLEMENTED) and clients
+        without it are taken on trust, unless the task ``needs_arguments``.
         """
         ask = getattr(client, "get_arguments", None)
         args = ask() if ask is not None else None

@@ -119,6 +119,15 @@ class RealRobot:
         reply = self._guarded("SendActionGetState", self.client.send_action_get_state, safe)
         return state_to_dict(reply)
 
+    def get_arguments(self) -> dict[str, Any] | None:
+        """GetArguments as a plain dict (rate and modes), None from a server without it: what
+        the env checks before its first reset, relayed (a read; it pauses nothing)."""
+        args = self.client.get_arguments()
+        if args is None:
+            return None
+        return {"action_cycle_rate": args.action_cycle_rate, "rs_mode": args.rs_mode,
+                "action_mode": args.action_mode}  # fmt: skip
+
     # -- supervision ----------------------------------------------------------------------------
     def check(self) -> bool:
         """Health probe: GetState; a failure pauses the robot. Returns whether it is running."""

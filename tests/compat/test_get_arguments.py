@@ -29,6 +29,10 @@ from robogym_ray.robots.server import RobotServerCore, RobotServerServicer, star
 
 DEPLOY_SIM = "RoboGymRay/IsaacDeployReachUR10eSim-v0"
 DEPLOY_ROB = "RoboGymRay/IsaacDeployReachUR10eRob-v0"
+EMPTY_SIM, EMPTY_ROB = (
+    "RoboGymRay/EmptyEnvironment2UR10Sim-v0",
+    "RoboGymRay/EmptyEnvironment2UR10Rob-v0",
+)
 
 MASTER_PROTO = """\
 syntax = "proto3";
@@ -83,8 +87,9 @@ SERVERS = {
             "action_cycle_rate": "60",
             "ee_frame": "wrist_3_link",
             "reference_frame": "base",
+            "action_mode": "servo_pos",  # the deploy reach's (ours: streamed targets)
         },
-        (60.0, "only_robot", "abs_pos"),
+        (60.0, "only_robot", "servo_pos"),
     ),
     "panda": (
         {"rs_mode": "1object", "action_mode": "abs_pos", "action_cycle_rate": "30.0"},
@@ -135,8 +140,8 @@ class ServerWithoutGetArguments(RobotServerServicer):
 
 
 def test_our_client_falls_back_and_refuses_a_server_for_another_task() -> None:
-    _, scene, options = gym.make(DEPLOY_SIM).unwrapped.server_spec()
-    core = RobotServerCore(make_robot("ur10e", scene=scene, seed=0, options=options))
+    robot, scene, options = gym.make(EMPTY_SIM).unwrapped.server_spec()
+    core = RobotServerCore(make_robot(robot, scene=scene, seed=0, options=options))
     server = grpc.server(futures.ThreadPoolExecutor(max_workers=4))
     pb_grpc.add_RobotServerServicer_to_server(ServerWithoutGetArguments(core), server)
     port = server.add_insecure_port("127.0.0.1:0")
@@ -145,14 +150,23 @@ def test_our_client_falls_back_and_refuses_a_server_for_another_task() -> None:
     try:
         with RobotServerClient(address) as client:
             assert client.get_arguments() is None  # UNIMPLEMENTED: nothing to check against
-        env = gym.make(DEPLOY_ROB, rs_address=address)
+        env = gym.make(EMPTY_ROB, rs_address=address)  # a robo-gym task: taken on trust
         env.reset(seed=0)
         env.step(env.action_space.sample())
         env.close()
+        # The deploy reach needs a mode no robo-gym server has: a server that cannot say is
+        # refused before anything moves.
+        env = gym.make(DEPLOY_ROB, rs_address=address)
+        with pytest.raises(ConfigError, match="does not answer GetArguments, so nothing says it "
+                           "runs action_mode servo_pos and rs_mode only_robot"):  # fmt: skip
+            env.reset(seed=0)
+        env.close()
+        assert core.calls["set"] == 1  # the first env's reset only
     finally:
         server.stop(0)
         core.close()
     # A server that answers, launched at another rate: refused at the first reset.
+    _, scene, options = gym.make(DEPLOY_SIM).unwrapped.server_spec()
     slow = start_robot_server("ur10e", scene=scene, options={**options, "action_cycle_rate": "30"})
     try:
         env = gym.make(DEPLOY_ROB, rs_address=slow.address)

@@ -79,7 +79,8 @@ class URConfig:
     action_cycle: float = 0.04
     """Seconds per action (the paper's 25 Hz); option action_cycle_rate (Hz) sets 1/rate."""
     actuation_cycle: float = 0.008
-    """Seconds per controller tick (the trajectory controller's 125 Hz)."""
+    """Seconds per controller tick (the trajectory controller's 125 Hz); servo_pos ticks at
+    the servo's physics step instead (1/120 s, or the action cycle split evenly below it)."""
     repeat: int | None = None
     """Ticks a command is published; None = one action cycle's worth."""
     objects_controller: bool = True
