@@ -10,6 +10,7 @@ from typing import Any
 
 import grpc
 import pytest
+import ray
 
 from robogym_ray.protocol import server_manager_pb2_grpc as sm_grpc
 from robogym_ray.supervision.manager_service import serve_manager
@@ -21,6 +22,20 @@ from robogym_ray.supervision.supervisor import Supervisor, SupervisorConfig
 os.environ.setdefault("RAY_AUTH_MODE", "disabled")
 # Keep Ray's usage-stats prompt and dashboard out of test runs (no network here anyway).
 os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
+
+
+@pytest.fixture
+def ray_must_not_start(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The command under test must refuse its input before it starts Ray. In the whole suite a
+    Ray is up already (tests/distributed share one) and a command would just join it, so Ray
+    is made to look absent, as in the fresh process a user's command runs in, and starting it
+    fails the test."""
+
+    def tripwire(*args: object, **kwargs: object) -> None:
+        pytest.fail("the command started Ray before it refused its input")
+
+    monkeypatch.setattr(ray, "is_initialized", lambda: False)
+    monkeypatch.setattr(ray, "init", tripwire)
 
 
 @pytest.fixture(scope="session")

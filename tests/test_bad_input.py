@@ -16,7 +16,6 @@ import sys
 from pathlib import Path
 
 import pytest
-import ray
 import torch
 
 from robogym_ray.cli import main
@@ -29,18 +28,8 @@ from robogym_ray.training import setup as run_setup
 PENDULUM = dict(policy_hidden=(256, 256), critic_hidden=(256, 256))  # the pendulum preset's
 
 
-@pytest.fixture(autouse=True)
-def ray_must_not_start(monkeypatch: pytest.MonkeyPatch) -> None:
-    """Every command here must refuse its input before it starts Ray. In the whole suite a Ray is
-    up already (tests/distributed share one) and a command would just join it, so Ray is made
-    to look absent, as in the fresh process a user's command runs in, and starting it fails the
-    test (``test_one_line_in_a_fresh_process`` runs a real fresh process)."""
-
-    def tripwire(*args: object, **kwargs: object) -> None:
-        pytest.fail("the command started Ray before it refused its input")
-
-    monkeypatch.setattr(ray, "is_initialized", lambda: False)
-    monkeypatch.setattr(ray, "init", tripwire)
+# Every command here must refuse its input before it starts Ray (tests/conftest.py's tripwire).
+pytestmark = pytest.mark.usefixtures("ray_must_not_start")
 
 
 def fails(capfd: pytest.CaptureFixture, *argv: str) -> str:

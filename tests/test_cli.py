@@ -3,22 +3,11 @@
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
 from robogym_ray.cli import COMMANDS, main
-
-
-def run_cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, "-m", "robogym_ray.cli", *args],
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
 
 
 def test_help_lists_every_command(capsys: pytest.CaptureFixture) -> None:
@@ -37,44 +26,58 @@ def test_each_command_has_help(command: str, capsys: pytest.CaptureFixture) -> N
     assert "--" in capsys.readouterr().out  # documented options
 
 
-def test_train_rejects_an_unknown_task_before_starting_ray() -> None:
-    out = run_cli("train", "--task", "NoSuchTask-v9", "--total-steps", "10")
-    assert out.returncode == 2
-    assert "NoSuchTask-v9" in out.stderr and "navigation" in out.stderr
-    assert "Started a local Ray" not in out.stderr
+def refused(capfd: pytest.CaptureFixture, *argv: str) -> str:
+    """``robogym-ray ARGV`` run in this process (a fresh process per call cost ~1.5 s of
+    imports each): exit code 2 and what it wrote to stderr, Ray never started."""
+    capfd.readouterr()
+    assert exit_code(*argv) == 2
+    return capfd.readouterr().err
 
 
-def test_train_rejects_a_malformed_config(tmp_path: Path) -> None:
+def exit_code(*argv: str) -> int | str | None:
+    """``main``'s exit code, whether returned or raised (argparse exits with 2 itself)."""
+    try:
+        return main(list(argv))
+    except SystemExit as exit:
+        return exit.code
+
+
+@pytest.mark.usefixtures("ray_must_not_start")
+def test_train_rejects_an_unknown_task_before_starting_ray(capfd: pytest.CaptureFixture) -> None:
+    err = refused(capfd, "train", "--task", "NoSuchTask-v9", "--total-steps", "10")
+    assert "NoSuchTask-v9" in err and "navigation" in err
+
+
+@pytest.mark.usefixtures("ray_must_not_start")
+def test_train_rejects_a_malformed_config(capfd: pytest.CaptureFixture, tmp_path: Path) -> None:
     bad = tmp_path / "bad.json"
     bad.write_text(json.dumps({"train": {"workerz": 2}}))
-    out = run_cli("train", "--config", str(bad))
-    assert out.returncode == 2 and "workerz" in out.stderr
+    assert "workerz" in refused(capfd, "train", "--config", str(bad))
     bad.write_text(json.dumps({"d4pg": {"num_atoms": 1}, "train": {"task": "pendulum"}}))
-    out = run_cli("train", "--config", str(bad), "--total-steps", "10")
-    assert out.returncode == 2 and "num_atoms" in out.stderr
-    out = run_cli("train", "--workers", "-1")
-    assert out.returncode == 2 and "workers" in out.stderr
-    out = run_cli("train", "--real-robot", "nohostport")
-    assert out.returncode == 2 and "HOST:PORT" in out.stderr
-    out = run_cli("serve", "--port", "-1")  # gRPC alone would listen on 65535
-    assert out.returncode == 2 and "--port" in out.stderr and "listening" not in out.stdout
+    assert "num_atoms" in refused(capfd, "train", "--config", str(bad), "--total-steps", "10")
+    assert "workers" in refused(capfd, "train", "--workers", "-1")
+    assert "HOST:PORT" in refused(capfd, "train", "--real-robot", "nohostport")
+    capfd.readouterr()
+    assert exit_code("serve", "--port", "-1") == 2  # gRPC alone would listen on 65535
+    out = capfd.readouterr()
+    assert "--port" in out.err and "listening" not in out.out
 
 
-def test_train_rejects_bad_emulation_settings_before_starting_ray(tmp_path: Path) -> None:
+@pytest.mark.usefixtures("ray_must_not_start")
+def test_train_rejects_bad_emulation_settings_before_starting_ray(
+    capfd: pytest.CaptureFixture, tmp_path: Path
+) -> None:
     bad = tmp_path / "bad.json"
     bad.write_text(json.dumps({"emulation": {"laser_noise_sigmaa": 0.1}}))
-    out = run_cli("train", "--config", str(bad))
-    assert out.returncode == 2 and "laser_noise_sigmaa" in out.stderr
+    assert "laser_noise_sigmaa" in refused(capfd, "train", "--config", str(bad))
     bad.write_text(json.dumps({"emulaton": {}}))
-    out = run_cli("train", "--config", str(bad))
-    assert out.returncode == 2 and "emulation" in out.stderr
-    out = run_cli("train", "--workers", "2", "--emulated-workers", "3")
-    assert out.returncode == 2 and "--emulated-workers 3: expected in [0, workers=2]" in out.stderr
-    out = run_cli("train", "--emulated-workers", "1", "--emu-laser-noise-sigma", "nan")
-    assert out.returncode == 2 and "--emu-laser-noise-sigma nan: expected a number" in out.stderr
-    out = run_cli("train", "--task", "pendulum", "--workers", "1", "--emulated-workers", "1")
-    assert out.returncode == 2 and "robot task" in out.stderr
-    assert "Started a local Ray" not in out.stderr
+    assert "emulation" in refused(capfd, "train", "--config", str(bad))
+    err = refused(capfd, "train", "--workers", "2", "--emulated-workers", "3")
+    assert "--emulated-workers 3: expected in [0, workers=2]" in err
+    err = refused(capfd, "train", "--emulated-workers", "1", "--emu-laser-noise-sigma", "nan")
+    assert "--emu-laser-noise-sigma nan: expected a number" in err
+    err = refused(capfd, "train", "--task", "pendulum", "--workers", "1", "--emulated-workers", "1")
+    assert "robot task" in err
 
 
 def test_train_merges_emulation_from_config_file_and_flags(tmp_path: Path) -> None:
@@ -101,7 +104,10 @@ def test_train_merges_emulation_from_config_file_and_flags(tmp_path: Path) -> No
     assert setup.emulation.velocity_scale == 0.95  # the rest: EmulationConfig's defaults
 
 
-def test_a_config_extends_another_field_by_field(tmp_path: Path) -> None:
+@pytest.mark.usefixtures("ray_must_not_start")
+def test_a_config_extends_another_field_by_field(
+    capfd: pytest.CaptureFixture, tmp_path: Path
+) -> None:
     from robogym_ray.errors import ConfigError
     from robogym_ray.training.command import read_sections
 
@@ -130,9 +136,8 @@ def test_a_config_extends_another_field_by_field(tmp_path: Path) -> None:
         read_sections(leaf)
     mid.write_text(json.dumps({"extends": "../base.json", "train": {"workerz": 1}}))
     leaf.write_text(json.dumps({"extends": "mid.json"}))
-    out = run_cli("train", "--config", str(leaf))  # a bad field in a base fails before Ray
-    assert out.returncode == 2 and "workerz" in out.stderr
-    assert "Started a local Ray" not in out.stderr
+    # A bad field in a base fails before Ray (ray_must_not_start).
+    assert "workerz" in refused(capfd, "train", "--config", str(leaf))
 
 
 def test_train_prints_a_short_summary_and_json_on_request() -> None:
