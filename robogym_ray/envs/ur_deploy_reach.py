@@ -120,9 +120,10 @@ class IsaacDeployReachUR(PoseTask, UR2Arm):
     wrist_3; Isaac Lab's ``RelativeJointPositionAction``, ``use_zero_offset``), clipped into
     the joint limits. 60 actions per second (Isaac Lab: physics 120 Hz, decimation 2), each
     target streamed to the server's PD servo (``action_mode:=servo_pos``: Isaac Lab's UR10e
-    gains, the UR's speed and acceleration limits), held until the next. A joint held ``e``
-    behind its target moves at stiffness / damping x ``e``: at most ~0.9 rad/s for the
-    shoulder and elbow, ~0.4 rad/s for the wrists.
+    gains, the UR's speed and acceleration limits), held until the next. A joint moves at
+    stiffness / damping x its lag behind the target (0.0625 rad at |action| = 1 when it is
+    set, less a step later): at most ~0.9 rad/s for the shoulder and elbow, ~0.45 rad/s for
+    the wrists.
 
     ## Observation space
     ``Box((19,), float32)``; nothing scaled, clipped or noisy.

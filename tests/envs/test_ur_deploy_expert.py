@@ -1,6 +1,6 @@
 """The deploy reach's scripted expert: its torch kinematics are ``geometry``'s, it reads either
 quaternion order, answers the env's [-1, 1] actions, and scripts (the 100-episode score is in
-docs/results/isaac-deploy-reach-ur10e-expert/; run-policy drives it in test_io_descriptors)."""
+docs/results/isaac-deploy-reach-ur10e-servo/; run-policy drives it in test_io_descriptors)."""
 
 from __future__ import annotations
 
