@@ -377,3 +377,21 @@ def test_the_decoder_clamps_then_filters_and_restarts_each_episode(exported) -> 
         np.testing.assert_allclose(decoder(obs), first, atol=1e-5)
     finally:
         env.close()
+
+
+def test_the_decoders_options_are_refused_where_they_mean_nothing(exported) -> None:
+    from robogym_ray.errors import ConfigError
+    from robogym_ray.evaluation import EvaluationConfig, evaluate
+
+    for kwargs, match in (
+        ({"ema_alpha": 0.5}, "--ema-alpha is for an Isaac Lab policy"),
+        ({"quat_order": "wxyz"}, "--quat-order is for an Isaac Lab policy"),
+        ({"isaac_lab": True, "env_id": SIM, "ema_alpha": 0.0}, r"ema_alpha must be in \(0, 1\]"),
+        ({"isaac_lab": True, "env_id": SIM, "quat_order": "zyxw"}, "quat_order must be"),
+    ):
+        with pytest.raises(ConfigError, match=match):
+            EvaluationConfig(**kwargs)
+    cfg = EvaluationConfig(isaac_lab=True, env_id="RoboGymRay/IsaacReachUR10Sim-v0",
+                           quat_order="wxyz", episodes=1)  # fmt: skip
+    with pytest.raises(ConfigError, match="--quat-order: .* observes no Isaac Lab command"):
+        evaluate(exported[0], cfg)
