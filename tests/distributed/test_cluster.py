@@ -1,15 +1,22 @@
-"""Real Ray clusters started with the `ray` CLI: `ray job submit`, and two nodes on one machine.
+"""Real Ray clusters started with the `ray` CLI: `ray job submit`, and robot servers placed on a
+second node. Both run on one two-node cluster, started once for this module (starting nodes
+is most of their cost on 2 cores; neither test kills a node - test_multinode.py, which does,
+starts its own).
 
-Each cluster runs `ray start --block` in its own process group and is stopped by signalling that
+Each node runs `ray start --block` in its own process group and is stopped by signalling that
 group (by PID) - never with `ray stop`, which would kill every Ray on the machine.
 """
 
 from __future__ import annotations
 
 import json
+import shutil
 import subprocess
 import sys
+import tempfile
 import time
+from collections.abc import Iterator
+from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
@@ -29,85 +36,85 @@ from tests.distributed.conftest import free_port
 pytestmark = [pytest.mark.slow]
 
 
-def test_ray_job_submit_runs_a_short_training(temp_dir: str, tmp_path: Path) -> None:
+@dataclass(frozen=True)
+class TwoNodes:
+    port: int  # the head's GCS
+    dashboard: int  # the head's dashboard (jobs are submitted there)
+    env: dict[str, str]
+    results: Path  # ROBOGYM_RAY_RESULTS on the head: where a job's relative --logdir lands
+    temp_dir: str  # the head's --temp-dir (Ray's own files, the job's working dir copy)
+
+
+@pytest.fixture(scope="module")
+def two_nodes(tmp_path_factory: pytest.TempPathFactory) -> Iterator[TwoNodes]:
+    """A head (1 CPU, dashboard) and a second node (1 CPU and the custom resource
+    ``robot_node``), each in its own process group."""
+    temp_dir = tempfile.mkdtemp(prefix="rgc", dir="/tmp")  # short: Unix socket paths
+    port, dash = free_port(), free_port()
+    results = tmp_path_factory.mktemp("results")
+    env = {**cluster_env(), "ROBOGYM_RAY_RESULTS": str(results)}
+    second = [
+        f"--address=127.0.0.1:{port}",
+        "--num-cpus=1",
+        '--resources={"robot_node": 4}',
+        "--min-worker-port=0",
+        "--max-worker-port=0",
+        *agent_ports(),  # the second node's agent would want the head's port too
+    ]
+    try:
+        with ray_node(head_args(port, temp_dir, 1, dash), temp_dir, env=env):
+            wait_for(lambda: cluster_cpus(f"127.0.0.1:{port}") >= 1, 90, "the head node")
+            with ray_node(second, temp_dir, env=env):
+                wait_for(lambda: cluster_cpus(f"127.0.0.1:{port}") >= 2, 90, "the second node")
+                yield TwoNodes(port, dash, env, results, temp_dir)
+    finally:
+        shutil.rmtree(temp_dir, ignore_errors=True)
+
+
+def test_ray_job_submit_runs_a_short_training(two_nodes: TwoNodes) -> None:
     """Submitted the README's way, with a relative --logdir: the run's files land together in a
     stable place on the head (here ROBOGYM_RAY_RESULTS; by default ~/robogym_ray_results), not
     in Ray's temporary copy of the working dir, and the summary says where."""
-    port, dash = free_port(), free_port()
-    env = {**cluster_env(), "ROBOGYM_RAY_RESULTS": str(tmp_path / "results")}
-    with ray_node(head_args(port, temp_dir, 2, dash), temp_dir, env=env):
-        wait_for(lambda: cluster_cpus(f"127.0.0.1:{port}", env) >= 2, 90, "the head node")
-        cmd = [
-            *RAY, "job", "submit", f"--address=http://127.0.0.1:{dash}",
-            f"--working-dir={REPO}", "--",
-            "robogym-ray", "train", "--task", "RoboGymRay/ObstacleAvoidanceMir100Sim-v0",
-            "--workers", "1", "--total-steps", "600", "--logdir", "runs", "--run-name", "job",
-            "--address", "auto", "--no-progress", "--no-evaluator",
-        ]  # fmt: skip
-        deadline = time.monotonic() + 90
-        while True:  # the head's job agent starts after its CPUs show: Ray says "try again later"
-            out = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=400)
-            if "No available agent" not in out.stderr or time.monotonic() > deadline:
-                break
-            time.sleep(3)
-        assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-3000:]
-        assert "succeeded" in out.stdout + out.stderr
-    run = tmp_path / "results" / "runs" / "job"
+    c = two_nodes
+    cmd = [
+        *RAY, "job", "submit", f"--address=http://127.0.0.1:{c.dashboard}",
+        f"--working-dir={REPO}", "--",
+        "robogym-ray", "train", "--task", "RoboGymRay/ObstacleAvoidanceMir100Sim-v0",
+        "--workers", "1", "--total-steps", "600", "--logdir", "runs", "--run-name", "job",
+        "--address", "auto", "--no-progress", "--no-evaluator",
+    ]  # fmt: skip
+    deadline = time.monotonic() + 90
+    while True:  # the head's job agent starts after its CPUs show: Ray says "try again later"
+        out = subprocess.run(cmd, env=c.env, capture_output=True, text=True, timeout=400)
+        if "No available agent" not in out.stderr or time.monotonic() > deadline:
+            break
+        time.sleep(1)
+    assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-3000:]
+    assert "succeeded" in out.stdout + out.stderr
+    run = c.results / "runs" / "job"
     summary = json.loads((run / "summary.json").read_text())
     assert summary["env_steps"] >= 600
     assert summary["checkpoint"] == str(run / "checkpoints" / "learner.pt")
     assert {p.name for p in run.iterdir()} >= {"config.json", "summary.json", "checkpoints"}
     assert f"files:       {run}/" in out.stdout + out.stderr
-    assert not list(Path(temp_dir).rglob("runs/job"))  # nothing in Ray's temporary dirs
+    assert not list(Path(c.temp_dir).rglob("runs/job"))  # nothing in Ray's temporary dirs
 
 
-def test_two_nodes_robot_servers_on_the_second(temp_dir: str, tmp_path: Path) -> None:
-    port = free_port()
-    with ray_node(head_args(port, temp_dir, 1), temp_dir):
-        env = cluster_env()
-        wait_for(lambda: cluster_cpus(f"127.0.0.1:{port}", env) >= 1, 90, "the head node")
-        second = [
-            f"--address=127.0.0.1:{port}",
-            "--num-cpus=1",
-            '--resources={"robot_node": 4}',
-            "--min-worker-port=0",
-            "--max-worker-port=0",
-            *agent_ports(),  # the second node's agent would want the head's port too
-        ]
-        with ray_node(second, temp_dir):
-            wait_for(lambda: cluster_cpus(f"127.0.0.1:{port}", env) >= 2, 90, "the second node")
-            # Robot servers need `robot_node`, which only the second node has: the run can only
-            # complete if the supervisor placed them there.
-            cmd = [
-                sys.executable,
-                "-m",
-                "robogym_ray.cli",
-                "train",
-                "--task",
-                "RoboGymRay/ObstacleAvoidanceMir100Sim-v0",
-                "--workers",
-                "1",
-                "--total-steps",
-                "400",
-                "--logdir",
-                str(tmp_path),
-                "--run-name",
-                "two",
-                "--address",
-                f"127.0.0.1:{port}",
-                "--sim-path",
-                "grpc",
-                "--envs-per-worker",
-                "1",
-                "--server-resource",
-                "robot_node",
-                "--no-progress",
-                "--no-evaluator",
-            ]
-            out = subprocess.run(
-                cmd, env=env, capture_output=True, text=True, timeout=400, cwd=REPO
-            )
-            assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-3000:]
+def test_two_nodes_robot_servers_on_the_second(two_nodes: TwoNodes, tmp_path: Path) -> None:
+    # Robot servers need `robot_node`, which only the second node has: the run can only
+    # complete if the supervisor placed them there.
+    cmd = [
+        sys.executable, "-m", "robogym_ray.cli", "train",
+        "--task", "RoboGymRay/ObstacleAvoidanceMir100Sim-v0", "--workers", "1",
+        "--total-steps", "400", "--logdir", str(tmp_path), "--run-name", "two",
+        "--address", f"127.0.0.1:{two_nodes.port}", "--sim-path", "grpc",
+        "--envs-per-worker", "1", "--server-resource", "robot_node",
+        "--no-progress", "--no-evaluator",
+    ]  # fmt: skip
+    out = subprocess.run(
+        cmd, env=two_nodes.env, capture_output=True, text=True, timeout=400, cwd=REPO
+    )
+    assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-3000:]
     summary = json.loads((tmp_path / "two" / "summary.json").read_text())
     assert summary["env_steps"] >= 400
     assert summary["server_nodes"]

@@ -159,12 +159,12 @@ def test_node_losses_on_a_cluster_of_separate_disks(temp_dir: str, tmp_path: Pat
                 f'mount -t tmpfs tmpfs {private} && exec "$0" "$@"']  # fmt: skip
     log = (tmp_path / "driver.err").open("w")
     with ray_node(head_args(port, temps[0], 0), temp_dir, env=env):
-        wait_for(lambda: alive_nodes(address, env) >= 1, 180, "the head node")
+        wait_for(lambda: alive_nodes(address) >= 1, 180, "the head node")
         node_a = ray_node(worker_node(port, temps[1], {"learner_node": 1}), temp_dir, env=env)
         with node_a as a:
-            wait_for(lambda: cluster_cpus(address, env) >= 2, 180, "node A")
+            wait_for(lambda: cluster_cpus(address) >= 2, 180, "node A")
             with ray_node(worker_node(port, temps[2]), temp_dir, own_disk, env) as b:
-                wait_for(lambda: cluster_cpus(address, env) >= 4, 180, "node B")
+                wait_for(lambda: cluster_cpus(address) >= 4, 180, "node B")
                 # 1. Storage that node B cannot see: refused before anything starts.
                 out = subprocess.run(train(port, private, "--total-steps", "100"), env=env,
                                      capture_output=True, text=True, timeout=300)  # fmt: skip
@@ -192,10 +192,13 @@ def test_node_losses_on_a_cluster_of_separate_disks(temp_dir: str, tmp_path: Pat
                 assert lost_workers, f"SPREAD put no worker on node B: {pids}"
                 os.killpg(b.pid, signal.SIGKILL)  # a workers-only machine lost
                 b.wait(timeout=30)
+                # Seen lost (its health checks fail) before node C joins, so that C is what
+                # makes three alive nodes below, not B counted still.
+                wait_for(lambda: alive_nodes(address) == 2, 60, "node B's loss")
             # A new machine joins, with the learner's resource: the learner's next home.
             node_c = ray_node(worker_node(port, temps[3], {"learner_node": 1}), temp_dir, env=env)
             with node_c:
-                wait_for(lambda: alive_nodes(address, env) >= 3, 180, "node C")
+                wait_for(lambda: alive_nodes(address) >= 3, 180, "node C")
                 before = snapshot_state(checkpoints)
                 wait_for(lambda: snapshot_state(checkpoints) > before, 120, "a later snapshot")
                 # 3. The learner's machine lost: the new learner must restore at least this.
