@@ -8,7 +8,9 @@ import os
 import signal
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import pytest
 import ray
@@ -20,7 +22,9 @@ from robogym_ray.training.run import run_training
 pytestmark = [pytest.mark.ray, pytest.mark.slow, pytest.mark.usefixtures("ray_cluster")]
 
 
-def test_a_paused_robot_server_replaced_once_is_one_restart(tmp_path: Path) -> None:
+def test_a_paused_robot_server_replaced_once_is_one_restart(
+    tmp_path: Path, stop_run: Callable[[], None]
+) -> None:
     run = "paused"
     cfg = TrainConfig(
         task="navigation",
@@ -29,29 +33,49 @@ def test_a_paused_robot_server_replaced_once_is_one_restart(tmp_path: Path) -> N
         envs_per_worker=1,
         evaluator=False,
         total_steps=10**6,
-        max_wall_s=30.0,  # the pause, its restart, and the worker going on after it
+        max_wall_s=90.0,  # a cap: the run is stopped once the worker went on after the restart
         logdir=str(tmp_path),
         run_name=run,
         progress=False,
     )
-    done, paused = threading.Event(), []
+    done, paused, went_on = threading.Event(), [], []
 
-    def pause_worker_server() -> None:
-        """SIGSTOP worker 0's server once it serves, SIGCONT it 20 s later (if still there)."""
+    def servers() -> list[dict]:
+        sup = ray.get_actor(f"{remote.SUPERVISOR_NAME}-{run}", namespace=remote.NAMESPACE)
+        return [s for s in ray.get(sup.status.remote(), timeout=10) if s["holder"] == "worker-0"]
+
+    def worker_steps() -> int:
+        worker = ray.get_actor(f"rollout-{run}-0", namespace=remote.NAMESPACE)
+        return int(ray.get(worker.ping.remote(), timeout=30))
+
+    def watch(check: Callable[[], Any]) -> Any:
+        """``check()``'s first true answer, polled until the test is done (None then)."""
         while not done.wait(0.3):
             try:
-                sup = ray.get_actor(f"{remote.SUPERVISOR_NAME}-{run}", namespace=remote.NAMESPACE)
-                servers = ray.get(sup.status.remote(), timeout=10)
-            except Exception:  # noqa: BLE001 - not started yet
+                if answer := check():
+                    return answer
+            except Exception:  # noqa: BLE001 - not started yet, or replaced meanwhile
                 continue
-            pids = [s["pid"] for s in servers if s["pid"] and s["holder"] == "worker-0"]
-            if pids:
-                os.kill(pids[0], signal.SIGSTOP)
-                paused.append(time.monotonic())
-                done.wait(20)
-                with contextlib.suppress(ProcessLookupError):  # replaced, as it should be
-                    os.kill(pids[0], signal.SIGCONT)
-                return
+        return None
+
+    def pause_worker_server() -> None:
+        """SIGSTOP worker 0's server once it serves; once its replacement serves and the
+        worker has gone on with it, stop the run (the rest of max_wall_s shows nothing more);
+        SIGCONT the paused one if it is still there."""
+        pid = watch(lambda: next((s["pid"] for s in servers() if s["pid"]), None))
+        if pid is None:
+            return
+        os.kill(pid, signal.SIGSTOP)
+        paused.append(time.monotonic())
+        try:
+            if watch(lambda: any(s["pid"] not in (None, pid) for s in servers())):
+                steps = watch(worker_steps)  # its count once the replacement serves
+                if watch(lambda: worker_steps() >= steps + 100):
+                    went_on.append(time.monotonic())
+                    stop_run()
+        finally:
+            with contextlib.suppress(ProcessLookupError):  # replaced, as it should be
+                os.kill(pid, signal.SIGCONT)
 
     pauser = threading.Thread(target=pause_worker_server)
     pauser.start()
@@ -60,6 +84,7 @@ def test_a_paused_robot_server_replaced_once_is_one_restart(tmp_path: Path) -> N
     finally:
         done.set()
         pauser.join()
+    assert went_on, "the worker did not go on after its server's replacement"
     assert len(paused) == 1
     # The supervisor's probe saw the pause first (hung) and replaced the server; the worker's
     # client then saw its call fail too (a deadline or a reset) - the same fault, not another.

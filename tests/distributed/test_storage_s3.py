@@ -18,27 +18,37 @@ import pytest
 BUCKET = "robogym"
 
 
-@pytest.fixture
-def s3(monkeypatch: pytest.MonkeyPatch) -> Iterator[Any]:
-    """A bucket on a local S3 server; the AWS_* variables that reach it, set for this test."""
-    boto3 = pytest.importorskip("boto3")
+@pytest.fixture(scope="session")
+def s3_server() -> Iterator[str]:
+    """An S3 server on 127.0.0.1 with the test bucket, started once for the session (the tests
+    keep to key prefixes of their own); its endpoint URL."""
+    pytest.importorskip("boto3")
     moto_server = pytest.importorskip("moto.server")
     server = moto_server.ThreadedMotoServer(ip_address="127.0.0.1", port=0, verbose=False)
     server.start()
     host, port = server.get_host_and_port()
+    try:
+        yield f"http://{host}:{port}"
+    finally:
+        server.stop()
+
+
+@pytest.fixture
+def s3(s3_server: str, monkeypatch: pytest.MonkeyPatch) -> Any:
+    """A client of the bucket; the AWS_* variables that reach it, set for this test."""
+    import boto3
+
     for key, value in {
         "AWS_ACCESS_KEY_ID": "testing",
         "AWS_SECRET_ACCESS_KEY": "testing",
         "AWS_DEFAULT_REGION": "us-east-1",
-        "AWS_ENDPOINT_URL": f"http://{host}:{port}",
+        "AWS_ENDPOINT_URL": s3_server,
     }.items():
         monkeypatch.setenv(key, value)
-    client = boto3.client("s3", endpoint_url=f"http://{host}:{port}")
-    client.create_bucket(Bucket=BUCKET)
-    try:
-        yield client
-    finally:
-        server.stop()
+    client = boto3.client("s3", endpoint_url=s3_server)
+    if BUCKET not in {b["Name"] for b in client.list_buckets()["Buckets"]}:
+        client.create_bucket(Bucket=BUCKET)
+    return client
 
 
 def cli(*args: str, timeout: float = 400) -> subprocess.CompletedProcess:
