@@ -437,15 +437,23 @@ def test_emulated_workers_train_on_emulated_robots_and_the_evaluator_does_not(
     assert again.emulation == emulation and again.train.emulated_workers == 1
 
 
-def test_snapshot_selection_keeps_a_best_policy_that_evaluate_reads(tmp_path: Path) -> None:
-    from robogym_ray.export import load_policy
-
-    summary = run_training(
-        pendulum(tmp_path, "sel", 1500, select_episodes=1),
+@pytest.fixture(scope="module")
+def selecting_run(tmp_path_factory: pytest.TempPathFactory, ray_cluster: None) -> dict:
+    """A Pendulum run that scores its snapshots (evaluator calls back to back, the default):
+    its summary, shared by the two tests that read it."""
+    root = tmp_path_factory.mktemp("selecting")
+    return run_training(
+        pendulum(root, "sel", 1500, select_episodes=1),
         {"min_replay_size": 256, "policy_average_tau": 0.05},
     )
+
+
+def test_snapshot_selection_keeps_a_best_policy_that_evaluate_reads(selecting_run: dict) -> None:
+    from robogym_ray.export import load_policy
+
+    summary = selecting_run
     # With policy averaging the run ships (and evaluate loads) the average.
-    final = load_policy(tmp_path / "sel" / "checkpoints" / "learner.pt")
+    final = load_policy(summary["checkpoint"])
     assert final.info.source.endswith("learner.pt#policy_average")
     best = summary["best_snapshot"]
     assert best["snapshots_scored"] >= 1 and Path(best["path"]).name == "policy-best.pt"
@@ -455,9 +463,9 @@ def test_snapshot_selection_keeps_a_best_policy_that_evaluate_reads(tmp_path: Pa
     assert policy(np.zeros(3)).shape == (1,)
 
 
-def test_eval_interval_spaces_the_evaluator_calls(tmp_path: Path) -> None:
+def test_eval_interval_spaces_the_evaluator_calls(tmp_path: Path, selecting_run: dict) -> None:
     spaced = run_training(pendulum(tmp_path, "spaced", 1500, eval_interval_s=1e6))
-    back_to_back = run_training(pendulum(tmp_path, "b2b", 1500))
+    back_to_back = selecting_run  # the same length, at the default interval (0: back to back)
     assert len(spaced["eval_history"]) == 1  # the first call, then none for 10^6 s
     assert len(back_to_back["eval_history"]) > 1
 
