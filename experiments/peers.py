@@ -145,14 +145,19 @@ class Run:
 
 
 def train(algo: str, problem: str, minutes: float, seed: int, out: Path,
-          save_every_min: float = 5.0) -> dict[str, Any]:  # fmt: skip
-    """Train until ``minutes`` of wall time are spent; snapshots under ``out/snapshots``."""
+          save_every_min: float = 5.0, layout: tuple[int | None, int] = (None, 1),
+          ) -> dict[str, Any]:  # fmt: skip
+    """Train until ``minutes`` of wall time are spent; snapshots under ``out/snapshots``.
+
+    ``layout``: RLlib's (env runners, envs per runner); None runners is one per core."""
     import robogym_ray  # noqa: F401 - registers the ids
 
     (out / "snapshots").mkdir(parents=True, exist_ok=True)
     if algo in SB3_ALGOS:
+        if layout != (None, 1):
+            raise SystemExit(f"--env-runners / --envs-per-runner are RLlib's; {algo} has one env")
         return _train_sb3(algo, problem, minutes, seed, out, save_every_min)
-    return _train_rllib(algo, problem, minutes, seed, out, save_every_min)
+    return _train_rllib(algo, problem, minutes, seed, out, save_every_min, layout)
 
 
 def _train_sb3(algo: str, problem: str, minutes: float, seed: int, out: Path,
@@ -188,11 +193,14 @@ def _train_sb3(algo: str, problem: str, minutes: float, seed: int, out: Path,
 
 
 def _train_rllib(algo: str, problem: str, minutes: float, seed: int, out: Path,
-                 save_every_min: float) -> dict[str, Any]:  # fmt: skip
+                 save_every_min: float, layout: tuple[int | None, int],
+                 ) -> dict[str, Any]:  # fmt: skip
     rllib = _rllib()
-    algo_obj = rllib.build(algo, PROBLEMS[problem], seed)
+    algo_obj = rllib.build(algo, PROBLEMS[problem], seed, *layout)
     sizes = rllib.batch_sizes(algo_obj)
     run = Run(algo, problem, minutes, seed, out, save_every_min)
+    if layout != (None, 1):
+        run.head["command"] += f" --env-runners {layout[0]} --envs-per-runner {layout[1]}"
 
     def counters(c: dict[str, Any]) -> dict[str, Any]:
         # Samples trained count every minibatch of every epoch: / minibatch = gradient updates.
@@ -366,6 +374,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     t.add_argument("--seed", type=int, default=0)
     t.add_argument("--save-every-min", type=float, default=5.0)
     t.add_argument("--out", default=None, help="default: runs/peers/PROBLEM-ALGO-seedSEED")
+    t.add_argument(
+        "--env-runners",
+        type=int,
+        default=None,
+        metavar="N",
+        help="RLlib only: env runners (default: one per core, RLlib's example)",
+    )
+    t.add_argument("--envs-per-runner", type=int, default=1, metavar="K",
+                   help="RLlib only: envs in each env runner (default 1, RLlib's)")  # fmt: skip
     e = sub.add_parser("evaluate", help="score a run's snapshots (writes curve.json)")
     x = sub.add_parser("exploration", help="an SB3 SAC or RLlib PPO run's policy std and "
                        "sampled actions' std per snapshot (SAC: its entropy coefficient; PPO: "
@@ -378,7 +395,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.command == "train":
         out = Path(args.out or f"runs/peers/{args.problem}-{args.algo}-seed{args.seed}")
-        record = train(args.algo, args.problem, args.minutes, args.seed, out, args.save_every_min)
+        for flag, value, low in (("--env-runners", args.env_runners, 0),
+                                 ("--envs-per-runner", args.envs_per_runner, 1)):  # fmt: skip
+            if value is not None and value < low:
+                parser.error(f"{flag} {value}: expected >= {low}")
+        layout = (args.env_runners, args.envs_per_runner)
+        record = train(args.algo, args.problem, args.minutes, args.seed, out,
+                       args.save_every_min, layout)  # fmt: skip
         print(json.dumps(record))
     elif args.command == "exploration":
         exploration(Path(args.run_dir), args.episodes, args.seed)

@@ -40,8 +40,12 @@ def _make_env(env_id: str) -> Callable[[dict[str, Any]], Any]:
     return creator
 
 
-def build(algo: str, env_id: str, seed: int) -> Any:
-    """The algorithm with RLlib's defaults, one env runner per core, on its own local Ray."""
+def build(
+    algo: str, env_id: str, seed: int, env_runners: int | None = None, envs_per_runner: int = 1
+) -> Any:
+    """The algorithm with RLlib's defaults on its own local Ray. Its layout: ``env_runners``
+    (default one per core) of ``envs_per_runner`` envs each (RLlib's default 1); a user short
+    of cores tries one runner of several envs instead, so both layouts are measured."""
     from ray.rllib.algorithms.ppo import PPOConfig
     from ray.rllib.algorithms.sac import SACConfig
     from ray.tune.registry import register_env
@@ -55,7 +59,10 @@ def build(algo: str, env_id: str, seed: int) -> Any:
     config = (
         config.environment(env_id)
         .framework("torch")
-        .env_runners(num_env_runners=cpus)
+        .env_runners(
+            num_env_runners=cpus if env_runners is None else env_runners,
+            num_envs_per_env_runner=envs_per_runner,
+        )
         .debugging(seed=seed)
     )
     return config.build_algo()
@@ -88,6 +95,7 @@ def batch_sizes(algo_obj: Any) -> dict[str, Any]:
         "minibatch_size": minibatch,
         "num_epochs": cfg.num_epochs,
         "num_env_runners": cfg.num_env_runners,
+        "num_envs_per_env_runner": cfg.num_envs_per_env_runner,
     }
 
 
