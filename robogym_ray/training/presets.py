@@ -57,8 +57,8 @@ _ISAAC_REACH = {**_POSITIONING, "v_min": -20.0, "v_max": 5.0}
 
 def _deploy_reach_support(discount: float = 0.99) -> dict[str, float]:
     """``[v_min, v_max]``: the discounted return's bounds over the env's action bounds (the rule
-    of ``learner.config``), rounded outwards to whole units: [-138, 4] for the UR10e, atoms 2.8
-    apart."""
+    of ``learner.config``), rounded outwards to whole units: [-9, 4] for the UR10e at its
+    streamed actions' bounds of [-1, 1] (it was [-138, 4] at the trajectory bounds of before)."""
     worst, best = return_range(discount)
     return {"v_min": float(math.floor(worst)), "v_max": float(math.ceil(best))}
 
@@ -104,10 +104,11 @@ TASKS: dict[str, TaskPreset] = {
         "UR10 reaches a pose: robo-gym 2.1.0's port of Isaac Lab's Isaac-Reach-UR10-v0",
     ),
     # Isaac Lab 3's deploy reach (UR10e): its keypoint reward times 1/60 s per step, plus the
-    # action and action-rate L2 terms, which dominate at the env's wide bounds; episodes end only
-    # by the time limit, so the support is the per-step range times the horizon (see
-    # _deploy_reach_support). The first preset, [-6, 4], left out the action terms: its 50-min
-    # run's returns (~-26 discounted) lay below the support (results-log.md, 2026-11-26).
+    # action and action-rate L2 terms; episodes end only by the time limit, so the support is the
+    # per-step range times the horizon, at the action bounds of [-1, 1] (_deploy_reach_support).
+    # A first preset, [-6, 4], left out the action terms, which dominated at the wide trajectory
+    # bounds of before: that run's returns (~-26 discounted) lay below it (results-log.md,
+    # 2026-11-26).
     "isaac-deploy-reach-ur10e": TaskPreset(
         "RoboGymRay/IsaacDeployReachUR10eSim-v0",
         _DEPLOY_REACH,
