@@ -47,8 +47,10 @@ class TwoNodes:
 
 @pytest.fixture(scope="module")
 def two_nodes(tmp_path_factory: pytest.TempPathFactory) -> Iterator[TwoNodes]:
-    """A head (1 CPU, dashboard) and a second node (1 CPU and the custom resource
-    ``robot_node``), each in its own process group."""
+    """A head (2 CPUs, dashboard) and a second node (1 CPU and the custom resource
+    ``robot_node``), each in its own process group. The head has room for the robot servers:
+    a run that ignored ``--server-resource`` would put them there (with a 1-CPU head the
+    learner filled it, and servers landed on the second node whatever the code did)."""
     temp_dir = tempfile.mkdtemp(prefix="rgc", dir="/tmp")  # short: Unix socket paths
     port, dash = free_port(), free_port()
     results = tmp_path_factory.mktemp("results")
@@ -62,10 +64,10 @@ def two_nodes(tmp_path_factory: pytest.TempPathFactory) -> Iterator[TwoNodes]:
         *agent_ports(),  # the second node's agent would want the head's port too
     ]
     try:
-        with ray_node(head_args(port, temp_dir, 1, dash), temp_dir, env=env):
-            wait_for(lambda: cluster_cpus(f"127.0.0.1:{port}") >= 1, 90, "the head node")
+        with ray_node(head_args(port, temp_dir, 2, dash), temp_dir, env=env):
+            wait_for(lambda: cluster_cpus(f"127.0.0.1:{port}") >= 2, 90, "the head node")
             with ray_node(second, temp_dir, env=env):
-                wait_for(lambda: cluster_cpus(f"127.0.0.1:{port}") >= 2, 90, "the second node")
+                wait_for(lambda: cluster_cpus(f"127.0.0.1:{port}") >= 3, 90, "the second node")
                 yield TwoNodes(port, dash, env, results, temp_dir)
     finally:
         shutil.rmtree(temp_dir, ignore_errors=True)
