@@ -12,6 +12,12 @@ Navigation's shapes and recipe networks: 20 observations, 2 actions, (400, 300) 
     python benchmarks/learner_capacity.py alone --batches 1024 --threads 1 2 --load 0.5
         the same beside one process that keeps a core busy half the time (a rollout worker's
         share of the cores), to measure what a thread the cores cannot hold costs;
+    python benchmarks/learner_capacity.py paths --paths compiled whole --batches 256 1792 \
+            --device cuda --rounds 3 --call-steps 4
+        the learner's step paths side by side in one process: today's host-stepped step eager
+        ("eager") or with compiled losses ("compiled", torch.compile reduce-overhead), and the
+        whole step in one CUDA graph ("whole", whole_step on); each built and warmed once,
+        then timed in turn, ``--rounds`` windows each (ratios from one machine, one minute);
     python benchmarks/learner_capacity.py versus /tmp/before --batch 256 --threads 1
         this tree against another checkout (``git worktree add /tmp/before COMMIT``): the
         ``alone`` mode in fresh processes, alternating, the ratio per pair.
@@ -92,7 +98,8 @@ def alone(batch: int, threads: int, seconds: float, args: argparse.Namespace) ->
     extra = {}
     for field, value in (("compile", args.compile), ("bf16", args.bf16),
                          ("sgd_steps_per_sample", args.sgd_steps),
-                         ("replay_device", args.replay_device)):  # fmt: skip
+                         ("replay_device", args.replay_device),
+                         ("whole_step", args.whole_step)):  # fmt: skip
         if value not in (None, "", False):
             extra[field] = value
     torch.set_num_threads(threads)
@@ -124,6 +131,48 @@ def alone(batch: int, threads: int, seconds: float, args: argparse.Namespace) ->
         "code": str(Path(sys.modules[D4PGLearner.__module__].__file__).parents[2]),
         **profile,
     }  # fmt: skip
+
+
+PATHS = {"eager": {}, "compiled": {"compile": "reduce-overhead"}, "whole": {"whole_step": "on"}}
+"""The learner's step paths ``paths`` mode compares, as the D4PG settings that pick them."""
+
+
+def paths(args: argparse.Namespace) -> None:
+    """Each path's learner built and warmed once per batch, then timed window by window in
+    turn (``--rounds``), each window ``--seconds`` long in calls of ``--call-steps`` steps."""
+    import torch
+
+    from robogym_ray.learner.learner import D4PGLearner
+
+    data = random_batch(FILL, OBS, ACT)
+    for batch in args.batches:
+        learners = {}
+        for name in args.paths:
+            try:
+                config = nav_config(batch, device=args.device, **PATHS[name])
+                learner = D4PGLearner(config, OBS, ACT, seed=0)
+                learner.add(data)
+                start = time.perf_counter()
+                run_steps(learner, args.warmup)
+                learners[name] = (learner, round(time.perf_counter() - start, 1))
+            except Exception as exc:  # noqa: BLE001 - the other paths are still measured
+                print(json.dumps({"mode": "paths", "path": name, "batch": batch,
+                                  "error": repr(exc)[:400]}), flush=True)  # fmt: skip
+        for r in range(args.rounds):
+            for name, (learner, warmup_s) in learners.items():
+                steps, start = 0, time.perf_counter()
+                while time.perf_counter() - start < args.seconds:
+                    learner.run(args.call_steps)
+                    steps += args.call_steps
+                if learner.device.type == "cuda":
+                    torch.cuda.synchronize()
+                elapsed = time.perf_counter() - start
+                print(json.dumps({
+                    "mode": "paths", "path": name, "round": r, "batch": batch,
+                    "device": str(learner.device), "call_steps": args.call_steps,
+                    "updates_per_s": round(steps / elapsed, 1),
+                    "samples_per_s": round(steps * batch / elapsed), "warmup_s": warmup_s,
+                }), flush=True)  # fmt: skip
 
 
 def profiled(learner: Any, steps: int, chunk: int) -> dict:
@@ -223,7 +272,7 @@ def versus(other: Path, args: argparse.Namespace) -> dict:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("mode", choices=("alone", "ray", "versus"))
+    parser.add_argument("mode", choices=("alone", "ray", "versus", "paths"))
     parser.add_argument("other", nargs="?", type=Path, help="versus: the other checkout")
     parser.add_argument("--batches", type=int, nargs="+", default=[256, 1024, 4096])
     parser.add_argument("--batch", type=int, default=1024, help="ray and versus modes")
@@ -238,6 +287,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--bf16", action="store_true")
     parser.add_argument("--sgd-steps", type=int, default=0, help="sgd_steps_per_sample")
     parser.add_argument("--replay-device", default="")
+    parser.add_argument("--whole-step", default="", help="alone: whole_step (on, off, auto)")
+    parser.add_argument("--paths", nargs="+", choices=list(PATHS), default=["compiled", "whole"])
+    parser.add_argument("--call-steps", type=int, default=1, help="paths: steps per run call")
     parser.add_argument(
         "--load",
         type=float,
@@ -250,6 +302,8 @@ def main(argv: list[str] | None = None) -> int:
         for batch in args.batches:
             for threads in args.threads:
                 print(json.dumps(alone(batch, threads, args.seconds, args)), flush=True)
+    elif args.mode == "paths":
+        paths(args)
     elif args.mode == "ray":
         on_ray(args.batch, args.cpus, args.rounds, args.ray_steps)
     else:

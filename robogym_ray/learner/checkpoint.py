@@ -4,7 +4,7 @@ they live in a run, and how they are read, written and checked.
 ``RUN/checkpoints/learner.pt`` (``CHECKPOINT_NAME``) is a ``torch.save`` dict::
 
     {"nets": {"policy", "critic", "target_policy", "target_critic"[, "policy_average"]},
-     "opts": {"policy", "critic"}, "num_steps": int, "torch_rng": tensor}
+     "opts": {"policy", "critic"}, "num_steps": int, "torch_rng": tensor[, "cuda_rng": tensor]}
 
 with the replay, when kept, beside it as ``learner.pt.replay.npz`` (``replay_path``): plain
 arrays only, loaded without pickle. A policy file (``policy-best.pt``, snapshot selection) has
@@ -157,6 +157,8 @@ def learner_state(learner: Any) -> dict[str, Any]:
                  "critic": learner.critic_opt.state_dict()},
         "num_steps": learner.num_steps,
         "torch_rng": torch.get_rng_state(),
+        # The whole step draws its samples from the device's generator: resumed, it goes on.
+        **({"cuda_rng": torch.cuda.get_rng_state()} if learner.device.type == "cuda" else {}),
     }  # fmt: skip
 
 

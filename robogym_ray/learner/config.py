@@ -118,6 +118,12 @@ class D4PGConfig:
     on a GPU), 'max-autotune'); empty: not compiled. The first steps pay the compilation."""
     bf16: bool = False
     """Run the networks under bf16 autocast (the losses and the optimizer stay float32)."""
+    whole_step: str = "off"
+    """'on': every learner step reads no host value (device draws, schedules and counters on
+    the learner's device, the replay there too) and a GPU replays each block of steps as one
+    CUDA graph (a CPU runs the same steps eagerly); 'off': the host-stepped loop; 'auto': 'on'
+    on CUDA when ``compile`` is empty. For one seed it samples other transitions than 'off'
+    (torch's generator, not NumPy's); given the same draws, the same steps."""
     rate_tolerance: int = 0
     """0: the learner takes its steps inside the call that inserted the transitions paying for
     them. T > 0 (at least ``sgd_steps_per_sample``): a learner thread steps between inserts, up
@@ -180,6 +186,24 @@ class D4PGConfig:
                 "rate_tolerance",
                 self.rate_tolerance,
                 "0 (coupled) or >= sgd_steps_per_sample",
+            ),
+            (
+                self.whole_step in ("on", "off", "auto"),
+                "whole_step",
+                self.whole_step,
+                "'on', 'off' or 'auto'",
+            ),
+            (
+                not (self.whole_step == "on" and self.compile),
+                "whole_step",
+                (self.whole_step, self.compile),
+                "'on' with compile '' (the whole step is its own CUDA graph)",
+            ),
+            (
+                not (self.whole_step == "on" and self.replay_device == "host"),
+                "whole_step",
+                (self.whole_step, self.replay_device),
+                "'on' with the replay on the learner's device (replay_device 'auto' or 'learner')",
             ),
             (
                 self.compile in COMPILE_MODES,

@@ -7,7 +7,9 @@ critic and policy per batch and writes the per-sample critic loss back as the ne
 
 One code path for every device: on a GPU the replay lives on the device (``replay_device``),
 the losses may be compiled (``compile``) and run in bf16 (``bf16``), and a call's metrics come
-to the host once; the CPU tests run the same code with the same switches.
+to the host once; the CPU tests run the same code with the same switches. With ``whole_step``
+the steps read no host value at all and a GPU replays each block as one CUDA graph
+(``learner/whole_step.py``); a CPU runs the same steps eagerly.
 """
 
 from __future__ import annotations
@@ -31,6 +33,7 @@ from robogym_ray.learner.distributional import (
 )
 from robogym_ray.learner.networks import DistributionalCritic, Policy
 from robogym_ray.learner.replay import Backend, PrioritizedReplay
+from robogym_ray.learner.whole_step import WholeStep
 
 
 def pick_device(name: str = "auto") -> torch.device:
@@ -40,21 +43,43 @@ def pick_device(name: str = "auto") -> torch.device:
     return torch.device(name)
 
 
-def make_adam(params: Any, lr: float) -> torch.optim.Adam:
-    """Adam with the fused kernel (one kernel for all parameters) where this torch has it."""
-    try:
-        return torch.optim.Adam(params, lr=lr, fused=True)
-    except (RuntimeError, TypeError):  # older torch / unsupported device
-        return torch.optim.Adam(params, lr=lr)
+def make_adam(params: Any, lr: float, device: torch.device | None = None) -> torch.optim.Adam:
+    """Adam with the fused kernel (one kernel for all parameters) where this torch has it.
+
+    With ``device``, the learning rate is a tensor there, which the whole step changes in place,
+    and on CUDA the step is capturable in a graph. On a CPU the tensor is float64: the fused
+    kernel then takes the updates a Python float rate gives, bit for bit. On CUDA it is float32,
+    which the fused kernel reads there, so a rate may round differently in its last bit.
+    """
+    params = list(params)
+    if device is None:
+        rate: float | torch.Tensor = lr
+        kinds: list[dict[str, Any]] = [{"fused": True}, {}]
+    else:
+        dtype = torch.float32 if device.type == "cuda" else torch.float64
+        rate = torch.tensor(lr, dtype=dtype, device=device)
+        capturable = {"capturable": True} if device.type == "cuda" else {}
+        kinds = [{"fused": True, **capturable}, {"foreach": False, **capturable}]
+    for i, kind in enumerate(kinds):
+        try:
+            return torch.optim.Adam(params, lr=rate, **kind)
+        except (RuntimeError, TypeError):  # older torch / unsupported device
+            if i == len(kinds) - 1:
+                raise
+    raise AssertionError("unreachable")
 
 
 def _numpy_state(net: nn.Module) -> dict[str, np.ndarray]:
     return {k: v.detach().cpu().numpy().copy() for k, v in net.state_dict().items()}
 
 
-def linear_ramp(step: int, start: int, length: int, begin: float, end: float) -> float:
-    """``begin`` until ``start``, then linearly to ``end`` over ``length`` steps, then ``end``."""
-    frac = min(1.0, max(0, step - start) / max(1, length))
+def linear_ramp(step: Any, start: int, length: int, begin: float, end: float) -> Any:
+    """``begin`` until ``start``, then linearly to ``end`` over ``length`` steps, then ``end``;
+    ``step`` a number, or a tensor (the whole step's counter: the answer stays on its device)."""
+    if isinstance(step, torch.Tensor):
+        frac = ((step - start).clamp(min=0) / max(1, length)).clamp(max=1.0)
+    else:
+        frac = min(1.0, max(0, step - start) / max(1, length))
     return begin + frac * (end - begin)
 
 
@@ -85,11 +110,15 @@ class D4PGLearner:
         self.policy_average: Policy | None = (
             copy.deepcopy(self.policy).requires_grad_(False) if c.policy_average_tau > 0 else None
         )
-        self.policy_opt = make_adam(self.policy.parameters(), c.policy_lr)
-        self.critic_opt = make_adam(self.critic.parameters(), c.critic_lr)
+        whole = c.whole_step == "on" or (
+            c.whole_step == "auto" and self.device.type == "cuda" and not c.compile
+        )
+        lr_device = self.device if whole else None
+        self.policy_opt = make_adam(self.policy.parameters(), c.policy_lr, lr_device)
+        self.critic_opt = make_adam(self.critic.parameters(), c.critic_lr, lr_device)
         self.support = make_support(c.v_min, c.v_max, c.num_atoms, self.device)
         alpha = c.priority_exponent if c.prioritized else 0.0  # alpha 0 == uniform sampling
-        on_device = c.replay_device == "learner" or (
+        on_device = whole or c.replay_device == "learner" or (
             c.replay_device == "auto" and self.device.type != "cpu"
         )
         self.replay = PrioritizedReplay(
@@ -97,6 +126,8 @@ class D4PGLearner:
             backend=Backend.torch_on(self.device) if on_device else None,
         )  # fmt: skip
         self.num_steps = 0
+        self.whole: WholeStep | None = WholeStep(self) if whole else None
+        """The device-side step (``whole_step``), or None: the host-stepped loop below."""
         self._critic_loss_fn, self._policy_loss_fn = self._critic_loss, self._policy_loss
         if c.compile:
             # The losses (forward and backward) are compiled; the fused optimizer steps and the
@@ -114,27 +145,47 @@ class D4PGLearner:
 
     @property
     def beta(self) -> float:
+        return self.beta_at(self.num_steps)
+
+    def beta_at(self, step: Any) -> Any:
+        """The importance exponent at learner step ``step`` (a number or a device tensor)."""
         c = self.config
-        return linear_ramp(self.num_steps, 0, c.importance_beta_steps, c.importance_beta_start, 1)
+        return linear_ramp(step, 0, c.importance_beta_steps, c.importance_beta_start, 1)
 
     @property
     def lr_scale(self) -> float:
         """Factor on the base learning rates at the current step (the linear late decay)."""
+        return self.lr_scale_at(self.num_steps)
+
+    def lr_scale_at(self, step: Any) -> Any:
         c = self.config
         if c.lr_decay_steps <= 0:
             return 1.0
-        return linear_ramp(self.num_steps, c.lr_decay_start, c.lr_decay_steps, 1, c.lr_final_scale)
+        return linear_ramp(step, c.lr_decay_start, c.lr_decay_steps, 1, c.lr_final_scale)
 
     def _apply_lr(self) -> float:
-        # Set on every step, decay or not: a restored optimizer state carries the rate it was
-        # saved with, which must not override this config's (another schedule, or none).
-        scale = self.lr_scale
+        return self.set_lr(self.num_steps)
+
+    def set_lr(self, step: Any) -> Any:
+        """Both optimizers' rates for learner step ``step``; returns the scale.
+
+        Set on every step, decay or not: a restored optimizer state carries the rate it was
+        saved with, which must not override this config's (another schedule, or none). A tensor
+        rate (the whole step's) is written in place, from a device value when ``step`` is one.
+        """
+        scale = self.lr_scale_at(step)
         for opt, base in (
             (self.policy_opt, self.config.policy_lr),
             (self.critic_opt, self.config.critic_lr),
         ):
             for group in opt.param_groups:
-                group["lr"] = base * scale
+                rate = base * scale
+                if not isinstance(group["lr"], torch.Tensor):
+                    group["lr"] = rate
+                elif isinstance(rate, torch.Tensor):
+                    group["lr"].copy_(rate)
+                else:
+                    group["lr"].fill_(rate)
         return scale
 
     # --- learning -----------------------------------------------------------------------
@@ -168,6 +219,8 @@ class D4PGLearner:
         c = self.config
         if steps <= 0:
             return {}
+        if self.whole is not None:
+            return self._run_whole(steps)
         sums, beta_sum, lr_sum, done = None, 0.0, 0.0, 0
         while done < steps:
             k = min(c.sgd_steps_per_sample, steps - done)
@@ -192,7 +245,26 @@ class D4PGLearner:
                 sums = stats if sums is None else sums + stats
                 beta_sum += beta
             done += k
-        mean = (sums / steps).cpu().numpy()  # the call's one device->host copy
+        return self._metrics((sums / steps).cpu().numpy(), beta_sum, lr_sum, steps)
+
+    def _run_whole(self, steps: int) -> dict[str, float]:
+        """``run`` by :class:`WholeStep` blocks; the schedules' values for the metrics are the
+        host's copies of what the device computed from the same counter."""
+        c, whole = self.config, self.whole
+        assert whole is not None
+        beta_sum, lr_sum, done = 0.0, 0.0, 0
+        while done < steps:
+            k = min(c.sgd_steps_per_sample, steps - done)
+            beta_sum += k * self.beta
+            lr_sum += sum(self.lr_scale_at(self.num_steps + j) for j in range(k))
+            whole.run_block(k)
+            self.num_steps += k
+            done += k
+        return self._metrics((whole.take_sums() / steps).numpy(), beta_sum, lr_sum, steps)
+
+    def _metrics(
+        self, mean: np.ndarray, beta_sum: float, lr_sum: float, steps: int
+    ) -> dict[str, float]:
         return {
             "critic_loss": float(mean[0]),
             "policy_loss": float(mean[1]),
@@ -259,7 +331,9 @@ class D4PGLearner:
             )
         return torch.zeros((), device=self.device)
 
-    def _update_targets(self) -> None:
+    def _update_targets(self, due: torch.Tensor | None = None) -> None:
+        """Polyak or hard target updates after a step. ``due``: whether a hard copy is due, as
+        a device bool (the whole step's; the copy becomes a ``where``), else decided here."""
         c = self.config
         pairs = ((self.policy, self.target_policy), (self.critic, self.target_critic))
         with torch.no_grad():
@@ -267,6 +341,9 @@ class D4PGLearner:
                 src, dst = list(online.parameters()), list(target.parameters())
                 if c.target_tau > 0:
                     torch._foreach_lerp_(dst, src, c.target_tau)
+                elif due is not None:
+                    for d, s in zip(dst, src, strict=True):
+                        d.copy_(torch.where(due, s, d))
                 elif self.num_steps % c.target_update_period == 0:
                     torch._foreach_copy_(dst, src)
             if self.policy_average is not None:
@@ -324,9 +401,17 @@ class D4PGLearner:
                 getattr(self, name).load_state_dict(sd)
         if self.policy_average is not None and "policy_average" not in nets:
             self.policy_average.load_state_dict(self.policy.state_dict())
-        self.policy_opt.load_state_dict(state["opts"]["policy"])
-        self.critic_opt.load_state_dict(state["opts"]["critic"])
+        for opt, saved in ((self.policy_opt, "policy"), (self.critic_opt, "critic")):
+            rates = [group["lr"] for group in opt.param_groups]
+            opt.load_state_dict(state["opts"][saved])
+            for group, rate in zip(opt.param_groups, rates, strict=True):
+                if isinstance(rate, torch.Tensor):  # keep the whole step's tensor rate
+                    group["lr"] = rate
         self.num_steps = int(state["num_steps"])
         torch.set_rng_state(state["torch_rng"].cpu())
+        if "cuda_rng" in state and self.device.type == "cuda":
+            torch.cuda.set_rng_state(state["cuda_rng"].cpu())
         if checkpoint.replay_path(path).exists():
             self.replay.load_state_dict(checkpoint.read_replay(checkpoint.replay_path(path)))
+        if self.whole is not None:
+            self.whole.forget()

@@ -13,6 +13,10 @@ host NumPy generator on both, so for one seed and insert order both sample the s
 the same weights, up to float64 round-off: the totals and prefix sums add in another order than
 the trees', which can move a draw within round-off of a boundary to the neighbouring slot and
 change a weight's last bits.
+
+The whole-step learner (``learner/whole_step.py``) samples with draws it makes on its device
+(:meth:`PrioritizedReplay.sample_drawn`): no host value enters, so a CUDA graph can hold it. For
+that the fill level and the running maximum priority are arrays of the backend, changed in place.
 """
 
 from __future__ import annotations
@@ -74,6 +78,20 @@ class Backend:
             return self.asarray(array)
         host = self.torch.from_numpy(np.ascontiguousarray(array)).pin_memory()
         return host.to(self.device, non_blocking=True)
+
+    def arange(self, n: int) -> Any:
+        """0, 1, ..., n - 1 as float64 here (made on a device: no host copy)."""
+        if self.on_host:
+            return np.arange(n, dtype=np.float64)
+        return self.torch.arange(n, dtype=self.torch.float64, device=self.device)
+
+    def set_(self, dst: Any, value: Any) -> None:
+        """Write ``value`` into the 0-d array ``dst`` in place (a captured graph keeps reading
+        ``dst``'s memory, so it is never replaced)."""
+        if self.on_host:
+            dst[...] = value
+        else:
+            dst.copy_(self.asarray(value, str(dst.dtype).removeprefix("torch.")))
 
     def to_numpy(self, value: Any) -> np.ndarray:
         return value if self.on_host else value.detach().cpu().numpy()
@@ -220,6 +238,9 @@ class PrioritizedReplay:
             self.min_tree = FlatTree(capacity, "amin", np.inf, b)
         self._max_priority = b.asarray(1.0, "float64")
         """Where the priorities live: on a device, reading it would wait for the device."""
+        self._fill = b.asarray(0, "int64")
+        """``size`` where the priorities live, for a sampler that reads no host value."""
+        self._zero = b.asarray(0.0, "float64")
         self.cursor = 0  # next slot to write; the oldest transition once full
         self.size = 0
         self.total_added = 0
@@ -252,6 +273,7 @@ class PrioritizedReplay:
         self._set_priorities(idx, b.asarray(priorities, "float64"))
         self.cursor = int((self.cursor + count) % self.capacity)
         self.size = min(self.size + count, self.capacity)
+        b.set_(self._fill, self.size)
         self.total_added += count
         return idx
 
@@ -265,16 +287,21 @@ class PrioritizedReplay:
         """
         if self.size == 0:
             raise ConfigError("cannot sample from an empty replay")
-        b = self.backend
-        total = self.sum_tree.root_value
         # One uniform draw per equal-mass stratum lowers variance versus i.i.d. draws. The
         # draws are the host generator's on every backend (the same samples for one seed).
-        strata = b.upload(np.arange(batch_size) + self.rng.random(batch_size))
-        mass = strata * (total / batch_size)
-        below_total = b.op("nextafter")(total, b.asarray(0.0, "float64"))
+        return self.sample_drawn(self.backend.upload(self.rng.random(batch_size)), beta)
+
+    def sample_drawn(self, draws: Any, beta: Any) -> tuple[dict[str, Any], Any, Any]:
+        """:meth:`sample` with its uniform draws in [0, 1) given, one per sample, as an array of
+        this backend; ``beta`` a number or a 0-d array. Reads no host value: on a device, a CUDA
+        graph can capture it. The replay must not be empty."""
+        b, n = self.backend, len(draws)
+        total = self.sum_tree.root_value
+        mass = (b.arange(n) + draws) * (total / n)  # draw j lands in stratum j of n
+        below_total = b.op("nextafter")(total, self._zero)
         idx = self.sum_tree.find_prefix(b.op("minimum")(mass, below_total))
         # Float round-off can walk into an empty leaf past the filled region; clamp back.
-        idx = idx.clip(0, self.size - 1)
+        idx = b.op("minimum")(idx, self._fill - 1)
         probs = self.sum_tree.leaves(idx) / total
         min_prob = self.min_tree.root_value / total
         weights = (probs / min_prob) ** (-beta)  # == (N P)^-b / (N P_min)^-b
@@ -288,7 +315,8 @@ class PrioritizedReplay:
 
     def _set_priorities(self, idx: Any, priorities: Any) -> None:
         priorities = abs(priorities) + self.eps
-        self._max_priority = self.backend.op("maximum")(self._max_priority, priorities.max())
+        b = self.backend
+        b.set_(self._max_priority, b.op("maximum")(self._max_priority, priorities.max()))
         scaled = priorities**self.alpha
         self.sum_tree.update(idx, scaled)
         self.min_tree.update(idx, scaled)
@@ -313,5 +341,6 @@ class PrioritizedReplay:
         self.sum_tree.update(idx, b.asarray(state["priorities"], "float64"))
         self.min_tree.update(idx, b.asarray(state["priorities"], "float64"))
         self.cursor, self.size, self.total_added = (int(v) for v in state["counters"])
-        self._max_priority = b.asarray(float(state["max_priority"]), "float64")
+        b.set_(self._fill, self.size)
+        b.set_(self._max_priority, float(state["max_priority"]))
         self.rng.bit_generator.state = state["rng_state"]
