@@ -118,8 +118,10 @@ class D4PGLearner:
         self.critic_opt = make_adam(self.critic.parameters(), c.critic_lr, lr_device)
         self.support = make_support(c.v_min, c.v_max, c.num_atoms, self.device)
         alpha = c.priority_exponent if c.prioritized else 0.0  # alpha 0 == uniform sampling
-        on_device = whole or c.replay_device == "learner" or (
-            c.replay_device == "auto" and self.device.type != "cpu"
+        on_device = (
+            whole
+            or c.replay_device == "learner"
+            or (c.replay_device == "auto" and self.device.type != "cpu")
         )
         self.replay = PrioritizedReplay(
             c.replay_capacity, obs_dim, act_dim, alpha, c.priority_eps, seed=seed,
