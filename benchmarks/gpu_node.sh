@@ -1,75 +1,60 @@
 #!/usr/bin/env bash
-# Issue 42's GPU figures on a node with one GPU (docs/scaling.md says how they are read).
+# The GPU node's figures (docs/scaling.md says how they are read; docs/benchmarks.md has them).
 #
+#   bash benchmarks/gpu_node.sh throughput OUT   the node's first call, ~5.5 minutes: the learner's
+#                                             step paths side by side (today's compiled step and
+#                                             the whole step in one CUDA graph, alternating), then
+#                                             30-s navigation trainings with 2, 4, 8 and 14 workers
+#                                             x 4 envs and the GPU learner (batch 128 per worker),
+#                                             and 8 workers with the CPU learner beside.
+#   bash benchmarks/gpu_node.sh learning OUT [S]  the second call: one navigation training of the
+#                                             node recipe (experiments/configs/navigation-node.json)
+#                                             for S seconds (360), a policy snapshot a minute, the
+#                                             run packed as OUT/learning.tar.gz to be scored here
+#                                             (experiments/peers.py evaluate) on the 2-core seeds'
+#                                             100 episodes.
 #   bash benchmarks/gpu_node.sh learner OUT   the learner alone on CUDA, batch 256 to 16,384:
-#                                             eager, the CPU learner with 1-14 threads on the
-#                                             node's cores, eager with 8 SGD steps per sample,
-#                                             compiled (CUDA graphs), then bf16 with 8 SGD steps;
-#                                             at most 9 minutes (each part has its limit); a
-#                                             line of JSON per figure as it comes, errors in
-#                                             OUT/errors.log.
+#                                             eager, the CPU learner with 1-14 threads, 8 SGD steps
+#                                             per sample, compiled (CUDA graphs), bf16 (<= 9 min).
 #   bash benchmarks/gpu_node.sh versus OUT OTHER   the eager learner of this tree and of OTHER
 #                                             (e.g. `git archive COMMIT robogym_ray | tar -x
-#                                             -C .before`), alternating, twice; then this
-#                                             tree's 8-SGD-step, compiled and bf16 figures.
-#   bash benchmarks/gpu_node.sh profile OUT  the eager and compiled learner again, each figure
-#                                             with a profile: wall, kernel and host time.
-#   bash benchmarks/gpu_node.sh train OUT     90-s navigation trainings with 2, 4, 8 and 14
-#                                             workers and the GPU learner, then 8 workers with
-#                                             the CPU learner (one thread per learner CPU);
-#                                             about 10 minutes; needs the project installed.
-#   bash benchmarks/gpu_node.sh wheels        here, with a network: the wheels the learner part
-#                                             needs on a machine that has only torch (below).
+#                                             -C .before`), alternating, twice; then the switches.
+#   bash benchmarks/gpu_node.sh profile OUT  the eager and compiled learner, each figure with a
+#                                             profile: wall, kernel and host time.
 #
-# The learner part needs torch, numpy and gymnasium (importing robogym_ray registers its env
-# ids), not the project installed: the repository's root goes on PYTHONPATH. A machine with
-# torch and no network - this workplace's device machines run Python 3.12 with torch and no
-# gymnasium - gets gymnasium from .device-wheels/ (git-ignored, 0.5 MB), which `wheels` fills
-# and the device call carries. The train part cannot run on those machines: ray's wheel (79 MB)
-# is larger than one call carries (64 MiB) and pybullet has no wheel for Python 3.12. It is for
-# a GPU node of one's own, with `pip install -e .` done.
+# The node has torch and no network, and lacks ray, pybullet and gymnasium: `bash
+# benchmarks/device_kit.sh` builds them here into .device-kit/ (git-ignored), which each call
+# carries (`carry: [".device-kit"]`); this script installs it into /tmp/robogym-kit when an
+# import fails (a warm node keeps it for the next call). The repository's root goes on
+# PYTHONPATH: the project is not installed there. Every part writes one JSON line per figure as
+# it comes and its errors to OUT/errors.log, each step with its own time limit, and the steps
+# after a failed one still run (a device lease allows one try).
 #
-# Rehearse the learner part here before spending device time (no GPU, every switch exercised):
-#   GPU_NODE_DEVICE=cpu GPU_NODE_SECONDS=1 bash benchmarks/gpu_node.sh learner /tmp/rehearsal
+# Rehearse here before spending device time (no GPU, every part and switch exercised, short):
+#   GPU_NODE_DEVICE=cpu GPU_NODE_SECONDS=1 GPU_NODE_TRAIN_S=15 GPU_NODE_WORKERS="1 2" \
+#       bash benchmarks/gpu_node.sh throughput /tmp/rehearsal
 set -euo pipefail
-part=${1:?learner, train or wheels}
-root=$(cd "$(dirname "$0")/.." && pwd)
-wheels="$root/.device-wheels"
-py=$(command -v "${PYTHON:-python3}") # absolute: the import check below runs from /
-
-if [ "$part" = wheels ]; then
-  # The device's interpreter, not this one: Python 3.12 on manylinux x86-64.
-  "$py" -m pip download -q --no-deps --only-binary=:all: --python-version 3.12 \
-    --implementation cp --platform manylinux2014_x86_64 -d "$wheels" \
-    gymnasium==1.4.0 farama-notifications==0.0.6
-  ls -l "$wheels"
-  exit 0
-fi
-
+part=${1:?throughput, learning, learner, versus or profile}
 out=${2:?output folder}
+root=$(cd "$(dirname "$0")/.." && pwd)
+py=$(command -v "${PYTHON:-python3}") # absolute: the import check below runs from /
 mkdir -p "$out"
 export PYTHONUNBUFFERED=1 RAY_AUTH_MODE=disabled
 device=${GPU_NODE_DEVICE:-cuda}
 seconds=${GPU_NODE_SECONDS:-5}
-if ! "$py" -c "import gymnasium" 2>/dev/null; then
-  if ! compgen -G "$wheels/*.whl" >/dev/null; then
-    echo "no gymnasium here and no wheels in $wheels: run 'bash $0 wheels' where pip works," \
-      "and carry .device-wheels with the call" >&2
-    exit 2
-  fi
-  "$py" -m pip install -q --no-index --no-deps --no-compile --target /tmp/gpu-node-site \
-    "$wheels"/*.whl
-  export PYTHONPATH=/tmp/gpu-node-site${PYTHONPATH:+:$PYTHONPATH}
+if ! (cd / && "$py" -c "import ray, pybullet, gymnasium") 2>/dev/null; then
+  bash "$root/benchmarks/device_kit.sh" install /tmp/robogym-kit
+  export PYTHONPATH=/tmp/robogym-kit${PYTHONPATH:+:$PYTHONPATH}
 fi
 # This checkout, installed or not (a script's own folder, not the current one, is on its path).
 export PYTHONPATH=$root${PYTHONPATH:+:$PYTHONPATH}
-(cd / && "$py" -c "import robogym_ray") # fails here, in seconds, not after a machine's start
+(cd / && "$py" -c "import robogym_ray, ray, pybullet, gymnasium") # fails here, in seconds
 {
   if [ "$device" = cuda ]; then
     nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv,noheader
   fi
-  "$py" -c "import torch; print('torch', torch.__version__)"
-  echo "cores $(nproc), $(grep -m1 'model name' /proc/cpuinfo)"
+  "$py" -c "import torch, ray; print('torch', torch.__version__, 'ray', ray.__version__)"
+  echo "cores $(nproc), $(grep -m1 'model name' /proc/cpuinfo), load $(cut -d' ' -f1-3 /proc/loadavg)"
 } | tee "$out/device.txt"
 
 # One part of the learner's figures: its own time limit, its errors kept, and the parts after
@@ -117,17 +102,55 @@ profile)
   part 150 "compiled, profiled" --device "$device" "${all[@]}" --warmup 30 \
     --compile reduce-overhead --profile 50
   ;;
-train)
+throughput)
+  # Today's compiled step and the whole step, side by side at batch 256 (the goal's) and at the
+  # node recipe's 1,792, in calls of 4 steps (what a coupled insert owes at 14 workers).
+  echo "== learner paths" | tee -a "$out/errors.log"
+  timeout 150 "$py" "$root/benchmarks/learner_capacity.py" paths --paths compiled whole \
+    --device "$device" --batches 256 1792 --rounds 3 --seconds "$seconds" --warmup 30 \
+    --call-steps 4 2>>"$out/errors.log" | tee -a "$out/learner.jsonl" ||
+    echo "== learner paths: stopped, exit ${PIPESTATUS[0]}" | tee -a "$out/errors.log"
+  # The trainings take the whole step where it ran above, else today's compiled step.
+  if grep -q '"path": "whole", "round": 0' "$out/learner.jsonl" 2>/dev/null; then
+    gpu_d4pg='{"whole_step": "on"}'
+  else
+    gpu_d4pg='{"compile": "reduce-overhead"}'
+  fi
   cpus=$(nproc)
-  for workers in 2 4 8 14; do
-    "$py" "$root/benchmarks/scaling.py" train --task navigation --workers "$workers" --envs 4 \
-      --batch $((128 * workers)) --samples-per-insert 32 --wall-s 90 --repeats 1 \
-      --num-cpus "$cpus" --learner-cpus 1 --d4pg '{"compile": "reduce-overhead"}' \
-      | tee -a "$out/train.jsonl"
+  train_s=${GPU_NODE_TRAIN_S:-30}
+  for workers in ${GPU_NODE_WORKERS:-2 4 8 14}; do
+    echo "== training, $workers workers, GPU learner $gpu_d4pg" | tee -a "$out/errors.log"
+    timeout $((train_s + 60)) "$py" "$root/benchmarks/scaling.py" train --task navigation \
+      --workers "$workers" --envs 4 --batch $((128 * workers)) --samples-per-insert 32 \
+      --wall-s "$train_s" --repeats 1 --num-cpus "$cpus" --learner-cpus 1 --worker-cpus 1 \
+      --d4pg "$gpu_d4pg" 2>>"$out/errors.log" | tee -a "$out/train.jsonl" ||
+      echo "== training: stopped, exit ${PIPESTATUS[0]}" | tee -a "$out/errors.log"
   done
-  "$py" "$root/benchmarks/scaling.py" train --task navigation --workers 8 --envs 4 \
-    --batch 1024 --samples-per-insert 32 --wall-s 90 --repeats 1 --num-cpus "$cpus" \
-    --learner-cpus 4 --learner-gpus 0 --d4pg '{"device": "cpu"}' | tee -a "$out/train.jsonl"
+  echo "== training, 8 workers, CPU learner" | tee -a "$out/errors.log"
+  timeout $((train_s + 60)) "$py" "$root/benchmarks/scaling.py" train --task navigation \
+    --workers 8 --envs 4 --batch 1024 --samples-per-insert 32 --wall-s "$train_s" --repeats 1 \
+    --num-cpus "$cpus" --learner-cpus 4 --worker-cpus 1 --learner-gpus 0 \
+    --d4pg '{"device": "cpu"}' 2>>"$out/errors.log" | tee -a "$out/train.jsonl" ||
+    echo "== training: stopped, exit ${PIPESTATUS[0]}" | tee -a "$out/errors.log"
   ;;
-*) echo "unknown part $part: learner, train or wheels" >&2; exit 2 ;;
+learning)
+  # The node recipe for S seconds; its run folder (summary, snapshots, metrics) comes back packed.
+  wall=${3:-360}
+  runs=/tmp/node-runs
+  rm -rf "$runs"
+  # A rehearsal on a small CPU machine shrinks the recipe's 14 x 1 CPU to what fits there.
+  extra=()
+  [ "$device" = cuda ] || extra=(--workers 1 --worker-cpus 0.25 --learner-cpus 0.5)
+  echo "== learning, ${wall} s" | tee -a "$out/errors.log"
+  (cd / && timeout $((wall + 90)) "$py" -m robogym_ray.cli train \
+    --config "$root/experiments/configs/navigation-node.json" --max-wall-s "$wall" \
+    --total-steps 1000000000 --logdir "$runs" --run-name navigation-node-seed0 --seed 0 \
+    --no-progress --num-cpus "$(nproc)" "${extra[@]}") 2>&1 | tail -40 >>"$out/errors.log" ||
+    echo "== learning: stopped" | tee -a "$out/errors.log"
+  cp "$runs/navigation-node-seed0/summary.json" "$out/summary.json" 2>/dev/null || true
+  tar -czf "$out/learning.tar.gz" -C "$runs" --exclude='*.replay.npz' navigation-node-seed0 ||
+    echo "== learning: nothing to pack" | tee -a "$out/errors.log"
+  ls -l "$out"
+  ;;
+*) echo "unknown part $part: throughput, learning, learner, versus or profile" >&2; exit 2 ;;
 esac

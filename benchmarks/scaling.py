@@ -27,6 +27,7 @@ import json
 import os
 import statistics
 import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -48,12 +49,15 @@ def train_run(task: str, workers: int, envs: int, args: argparse.Namespace, run:
     with tempfile.TemporaryDirectory(prefix="scaling-") as logdir:
         config = Path(logdir) / "config.json"
         config.write_text(json.dumps({"extends": str(CONFIG), "d4pg": d4pg}))
-        cmd = ["robogym-ray", "train", "--config", str(config), "--task", TASKS[task],
+        # The CLI by its module: a node with the repository on PYTHONPATH has no robogym-ray.
+        cmd = [sys.executable, "-m", "robogym_ray.cli", "train", "--config", str(config),
+               "--task", TASKS[task],
                "--workers", str(workers), "--envs-per-worker", str(envs),
                "--total-steps", "1000000000", "--max-wall-s", str(args.wall_s),
                "--logdir", logdir, "--run-name", run, "--no-progress",
                "--num-cpus", str(args.num_cpus), "--learner-gpus", str(args.learner_gpus),
                "--no-evaluator", "--learner-cpus", str(args.learner_cpus),
+               "--worker-cpus", str(args.worker_cpus),
                "--policy-snapshot-every-s", "0", "--checkpoint-every", "0"]  # fmt: skip
         load = os.getloadavg()[0]
         env = {**os.environ, "RAY_AUTH_MODE": "disabled"}
@@ -65,6 +69,7 @@ def train_run(task: str, workers: int, envs: int, args: argparse.Namespace, run:
     return {
         "task": task, "workers": workers, "envs": envs, "batch": args.batch,
         "samples_per_insert": args.samples_per_insert, "learner_cpus": args.learner_cpus,
+        "worker_cpus": args.worker_cpus,
         "learner_threads": s.get("learner_threads"), "learner_device": s.get("learner_device"),
         "d4pg": args.d4pg,
         "env_steps_per_s": round(env_rate, 1),
@@ -206,6 +211,7 @@ def main() -> None:
     t.add_argument("--batch", type=int, default=256)
     t.add_argument("--samples-per-insert", type=float, default=32.0)
     t.add_argument("--learner-cpus", type=float, default=0.5)
+    t.add_argument("--worker-cpus", type=float, default=0.25)
     t.add_argument("--wall-s", type=float, default=60.0)
     t.add_argument("--repeats", type=int, default=3)
     t.add_argument("--num-cpus", type=float, default=2.0, help="the embedded Ray's CPUs")

@@ -324,7 +324,9 @@ class D4PGLearner:
         """bf16 autocast around the networks when ``bf16`` is set (losses stay float32)."""
         if not self.config.bf16:
             return contextlib.nullcontext()
-        return torch.autocast(self.device.type, dtype=torch.bfloat16)
+        # Autocast's cache of cast weights must not outlive a CUDA graph's capture.
+        cache = getattr(self, "whole", None) is None
+        return torch.autocast(self.device.type, dtype=torch.bfloat16, cache_enabled=cache)
 
     def _clip(self, net: nn.Module) -> torch.Tensor:
         if self.config.max_grad_norm > 0:

@@ -119,3 +119,32 @@ def test_settings_it_cannot_run_with_are_refused(kw: dict, why: str) -> None:
     with pytest.raises(ConfigError, match="D4PGConfig.whole_step=") as refused:
         _config(**kw)
     assert why in str(refused.value)
+
+
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="a CUDA graph needs a GPU")
+def test_on_cuda_the_captured_graph_takes_the_host_paths_steps() -> None:
+    """On a GPU (run on the node; CI has none): the whole step warms up, captures one graph and
+    replays it; fed the host path's draws through one device buffer that the graph reads, its
+    11 steps (schedules moving, hard copies, priorities, inserts between calls) match the host
+    loop's to float32 round-off (atomics in the backward make a GPU's sums order-dependent)."""
+    kw = dict(device="cuda", **SCHEDULES)
+    whole = D4PGLearner(_config(whole_step="on", **kw), OBS, ACT, seed=7)
+    host = D4PGLearner(_config(replay_device="learner", **kw), OBS, ACT, seed=7)
+    for learner in (whole, host):
+        for i in range(3):
+            learner.add(_data(100, seed=i))
+    draws = torch.zeros(whole.config.batch_size, dtype=torch.float64, device="cuda")
+    whole.whole.draw = lambda n: draws  # the graph keeps reading this buffer
+    source = _TorchDraws(5)
+    host.replay.rng = _TorchDraws(5)
+    for steps in (4, 2, 5):
+        for _ in range(steps):
+            draws.copy_(torch.from_numpy(source.random(len(draws))))
+            a, b = whole.run(1), host.run(1)
+        assert a == pytest.approx(b, rel=1e-4, abs=1e-6)
+        new = _data(20, seed=steps)
+        whole.add(new)
+        host.add(new)
+    assert whole.whole.graphs and whole.num_steps == int(whole.whole.step) == 11
+    for x, y in zip(_params(whole), _params(host), strict=True):
+        torch.testing.assert_close(x, y, rtol=1e-4, atol=1e-5)
