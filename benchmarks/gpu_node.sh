@@ -103,6 +103,13 @@ profile)
     --compile reduce-overhead --profile 50
   ;;
 throughput)
+  # The whole step's tests, the CUDA graph's among them (CI has no GPU): seconds, and they say
+  # whether the figures below measure a correct step.
+  echo "== the whole step's tests" | tee -a "$out/errors.log"
+  (cd "$root" && timeout 120 "$py" -m pytest -q -p no:cacheprovider -o addopts="" \
+    tests/learner/test_whole_step.py) >"$out/pytest.txt" 2>&1 ||
+    echo "== tests: failed (pytest.txt)" | tee -a "$out/errors.log"
+  tail -3 "$out/pytest.txt"
   # Today's compiled step and the whole step, side by side at batch 256 (the goal's) and at the
   # node recipe's 1,792, in calls of 4 steps (what a coupled insert owes at 14 workers).
   echo "== learner paths" | tee -a "$out/errors.log"
