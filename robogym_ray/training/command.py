@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any
@@ -93,42 +94,68 @@ def read_sections(path: str | Path, _chain: tuple[Path, ...] = ()) -> dict[str, 
     chain = (*_chain, path.resolve())
     if chain[-1] in _chain:
         raise ConfigError(f"{path}: 'extends' forms a cycle: {' -> '.join(map(str, chain))}")
-    data = read_json(path)
+    return sections_of(read_json(path), str(path), path.parent, chain)
+
+
+def sections_of(
+    data: object, source: str, base_dir: Path, chain: tuple[Path, ...] = ()
+) -> dict[str, dict[str, Any]]:
+    """The sections of a config's JSON object (a file's, or the same dict given in Python),
+    each checked against its config class; ``"extends"`` is read relative to ``base_dir``.
+    ``source`` names the config in errors."""
     if not isinstance(data, dict):
         raise ConfigError(
-            f"{path}: expected a JSON object with keys among {', '.join(SECTIONS)} and 'extends', "
-            f"got a JSON {type(data).__name__}"
+            f"{source}: expected a JSON object with keys among {', '.join(SECTIONS)} and "
+            f"'extends', got a JSON {type(data).__name__}"
         )
-    check_keys(data, (*SECTIONS, "extends"), str(path), "top-level key(s)")
+    check_keys(data, (*SECTIONS, "extends"), source, "top-level key(s)")
     for name, section in data.items():
         if name != "extends" and not isinstance(section, dict):
-            raise ConfigError(f"{path}: section {name!r} must be a JSON object")
+            raise ConfigError(f"{source}: section {name!r} must be a JSON object")
         if name != "extends":
             # Each file is checked on its own, so an error names the file that holds the key.
-            check_fields(SECTIONS[name], section, f"{path}: {name}")
+            check_fields(SECTIONS[name], section, f"{source}: {name}")
     base: dict[str, dict[str, Any]] = {name: {} for name in SECTIONS}
     if "extends" in data:
         parent = data["extends"]
         if not isinstance(parent, str) or not parent:
-            raise ConfigError(f"{path}: 'extends' must be a config file name, got {quote(parent)}")
+            raise ConfigError(
+                f"{source}: 'extends' must be a config file name, got {quote(parent)}"
+            )
         try:
-            base = read_sections(path.parent / parent, chain)
+            base = read_sections(base_dir / parent, chain)
         except ConfigError as exc:
-            raise ConfigError(f"{path} extends {parent}: {exc}") from None
+            raise ConfigError(f"{source} extends {parent}: {exc}") from None
     return {name: {**base[name], **data.get(name, {})} for name in SECTIONS}
+
+
+def setup_of(
+    sections: Mapping[str, Mapping[str, Any]],
+    source: str,
+    train: Mapping[str, Any] | None = None,
+    emulation: Mapping[str, Any] | None = None,
+    d4pg: Mapping[str, Any] | None = None,
+    flagged: bool = False,
+) -> TrainSetup:
+    """A config's ``sections`` with ``train``, ``emulation`` and ``d4pg`` values on top (the
+    command line's flags, a Python call's keywords). ``flagged``: those values came as flags,
+    so an error about one names the flag (``--workers 0``), not the field."""
+    train, emulation, d4pg = dict(train or {}), dict(emulation or {}), dict(d4pg or {})
+    check_fields(D4PGConfig, d4pg, f"{source}: d4pg")
+    return TrainSetup(
+        train=merge_config(TrainConfig, {**sections.get("train", {}), **train}, source,
+                           flags=flags_of(train) if flagged else None),
+        d4pg={**sections.get("d4pg", {}), **d4pg},
+        emulation=merge_config(EmulationConfig, {**sections.get("emulation", {}), **emulation},
+                               source, flags=flags_of(emulation, "emu-") if flagged else None),
+    )  # fmt: skip
 
 
 def build_config(args: argparse.Namespace) -> TrainSetup:
     train, emu = _given(args, TrainConfig), _given(args, EmulationConfig)
     source = train.get("config") or "command line"
     data = read_sections(source) if train.get("config") else {}
-    return TrainSetup(  # an error about a value given as a flag names the flag
-        train=merge_config(TrainConfig, {**data.get("train", {}), **train}, source,
-                           flags=flags_of(train)),
-        d4pg=dict(data.get("d4pg", {})),
-        emulation=merge_config(EmulationConfig, {**data.get("emulation", {}), **emu}, source,
-                               flags=flags_of(emu, "emu-")),
-    )  # fmt: skip
+    return setup_of(data, source, train, emu, flagged=True)
 
 
 def check_inputs(setup: TrainSetup) -> None:
@@ -178,11 +205,9 @@ def check_inputs(setup: TrainSetup) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from robogym_ray.training.run import run_training
+    from robogym_ray.training.api import train
 
-    setup = build_config(args)
-    check_inputs(setup)  # a bad input costs no Ray start and leaves no run directory
-    summary = run_training(setup.train, setup.d4pg, setup.emulation)
+    summary = train(build_config(args))  # the Python entry: checked before Ray starts
     print(json.dumps(summary) if args.json else summary_text(summary), flush=True)
     return 0
 

@@ -177,17 +177,11 @@ class TrainConfig:
         return self.workers + len(self.real_robot)
 
     def cpu_demand(self) -> float:
-        """Ray CPUs the run reserves (the supervisor's own 0.05 included)."""
-        servers = 0
-        if self.sim_path == "grpc":
-            servers = self.workers * self.envs_per_worker + (1 if self.evaluator else 0)
-        return (
-            self.learner_cpus
-            + self.rollout_workers * self.worker_cpus
-            + servers * self.server_cpus
-            + (self.evaluator_cpus if self.evaluator else 0.0)
-            + 0.05
-        )
+        """Ray CPUs the run reserves: the sum of ``resources.actor_needs``, the one table the
+        builder starts its actors from."""
+        from robogym_ray.training.resources import actor_needs, total_cpus
+
+        return total_cpus(actor_needs(self))
 
     def __post_init__(self) -> None:
         checks = [

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Callable
 from contextlib import suppress
 from typing import Any
 
@@ -24,8 +25,15 @@ log = logging.getLogger(__name__)
 class EvalSchedule:
     """One evaluator call in flight at a time, started at most every ``eval_interval_s``."""
 
-    def __init__(self, program: Program, run_stats: RunStats) -> None:
+    def __init__(
+        self,
+        program: Program,
+        run_stats: RunStats,
+        on_entry: Callable[[dict[str, float]], None] | None = None,
+    ) -> None:
         self.p, self.cfg, self.stats = program, program.cfg, run_stats
+        self.on_entry = on_entry
+        """Called with each evaluation's ``eval_history`` entry as it is recorded."""
         self.weights_ref: Any = None
         self.next_at = 0.0
         self.failure: DiskWriteError | None = None
@@ -139,6 +147,8 @@ class EvalSchedule:
             if (gif := self.stats.eval.pop(VIDEO_KEY, None)) is not None:
                 logger.gif("eval/video", gif, self.stats.env_steps)
             self.stats.eval_history.append(stats.eval_entry(self.stats, wall_s))
+            if self.on_entry is not None:
+                self.on_entry(self.stats.eval_history[-1])
             selector = self.p.selector
             if selector is not None and selector.better(self.stats.eval):
                 weights, version = ray.get(self.weights_ref)

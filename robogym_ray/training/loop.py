@@ -15,6 +15,7 @@ import logging
 import threading
 import time
 from collections import deque
+from collections.abc import Callable
 from contextlib import suppress
 from typing import Any
 
@@ -100,15 +101,21 @@ class LearnerDeaths:
 
 
 class TrainingLoop:
-    """Drives a built ``Program`` to ``cfg.total_steps``; ``run()`` returns the summary."""
+    """Drives a built ``Program`` to ``cfg.total_steps``; ``run()`` returns the summary.
 
-    def __init__(self, program: Program) -> None:
+    ``on_eval``: called (in the loop's thread: it must not block) with each evaluator window's
+    figures, those of ``eval_history`` and the rates so far (a Tune trial's report)."""
+
+    def __init__(
+        self, program: Program, on_eval: Callable[[dict[str, float]], None] | None = None
+    ) -> None:
         self.p, self.cfg = program, program.cfg
         self.stats = RunStats()
         self.weights_ref = program.learner.get_weights.remote()
         self.learner_deaths = LearnerDeaths(program.learner)
         self.weights_stale = False
-        self.evals = EvalSchedule(program, self.stats)
+        self.on_eval = on_eval
+        self.evals = EvalSchedule(program, self.stats, on_entry=self._eval_window)
         self.stop = threading.Event()
         """Set (e.g. by a SIGINT/SIGTERM handler) to end the run early, with checkpoint and
         summary."""
@@ -187,6 +194,22 @@ class TrainingLoop:
             self._check_disk(logger)
         return finish(self.p, self.stats, logger, self._scalars, self._wall, self.failure,
                       stopped_by=self.stopped_by, out_of_time=out_of_time)  # fmt: skip
+
+    def request_stop(self, by: str) -> None:
+        """End the run early, from any thread, the way a signal does (final checkpoint and
+        summary, ``ended`` stopped, ``stopped_by`` ``by``); the first asker is the one named."""
+        if self.stopped_by is None:
+            self.stopped_by = by
+        self.stop.set()
+
+    def _eval_window(self, entry: dict[str, float]) -> None:
+        if self.on_eval is None:
+            return
+        wall = max(entry["wall_s"], 1e-9)
+        learned = max(0, entry["learner_steps"] - self.p.first_learner_step)
+        self.on_eval({**entry, "eval_episodes": self.stats.eval.get("eval_episodes", 0.0),
+                      "env_steps_per_s": entry["env_steps"] / wall,
+                      "learner_steps_per_s": learned / wall})  # fmt: skip
 
     def _take_replies(self, wait_s: float = 0.0) -> None:
         """Take the answers (and errors) of the calls in ``_replies`` that have finished

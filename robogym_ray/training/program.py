@@ -14,6 +14,9 @@ evaluator               ``Evaluator``: greedy episodes  ``--evaluator-cpus``/``-
 real robots             ``RealRobot``: safety filter    on the driver's node (never restarted)
 ======================  ==============================  =========================================
 
+What each actor reserves (CPUs, GPUs, custom resources) is one row of ``resources.actor_needs``,
+the table the CPU check and a sweep's placement-group bundles are made from too.
+
 Every file of the run goes to one ``RunStorage`` (``--storage``/``--logdir``, + run name) that
 all nodes reach: the learner writes its checkpoints there itself, the driver the rest.
 """
@@ -47,18 +50,12 @@ from robogym_ray.storage import RunStorage, local_file
 from robogym_ray.training import setup
 from robogym_ray.training.config import TrainConfig
 from robogym_ray.training.presets import TaskPreset
+from robogym_ray.training.resources import ActorNeed, actor_needs
 from robogym_ray.training.selection import PolicySnapshots, SnapshotSelector
 from robogym_ray.training.stats import WorkerSlot
 from robogym_ray.training.supervision import start_supervision
 
 log = logging.getLogger(__name__)
-
-
-def requires(*names: str | None) -> dict[str, Any]:
-    """Ray options that put an actor on the nodes having every named custom resource (a token
-    amount: the resource marks the node, it does not count actors)."""
-    wanted = {name: 0.01 for name in names if name}
-    return {"resources": wanted} if wanted else {}
 
 
 class Program:
@@ -76,6 +73,8 @@ class Program:
     ) -> None:
         self.cfg, self.d4pg, self.preset, self.emulation = cfg, d4pg, preset, emulation
         self.name = place.name
+        # Each actor's Ray options: one row each of the table a sweep's bundles come from.
+        self.needs: dict[str, ActorNeed] = {n.role: n for n in actor_needs(cfg, learner_gpus(cfg))}
         setup.check_resources(cfg)
         check_reachable(place.root)  # before anything of the run is written or started
         self.storage = place.storage
@@ -106,9 +105,7 @@ class Program:
         if cfg.init_from:
             seed_checkpoint(cfg.init_from, self.storage, d4pg, self.obs_dim, self.act_dim)
         self.learner = remote.LearnerActor.options(
-            num_cpus=cfg.learner_cpus,
-            num_gpus=learner_gpus(cfg),
-            **requires(cfg.learner_resource),
+            **self.needs["learner"].options(),
             max_restarts=3,
             max_task_retries=0,
             name=f"learner-{self.name}",
@@ -146,12 +143,6 @@ class Program:
         holder = "evaluator" if index is None else f"worker-{index}"
         return {"provider": self.supervision.provider(emulated, holder=holder)}
 
-    def _sim_resources(self) -> tuple[str, ...]:
-        """With in-process robots, ``server_resource`` places the simulating actors themselves
-        (their robots run in them)."""
-        cfg = self.cfg
-        return (cfg.server_resource,) if cfg.sim_path == "inprocess" and cfg.server_resource else ()
-
     def _start_workers(self) -> list[WorkerSlot]:
         cfg = self.cfg
         n = cfg.rollout_workers
@@ -169,14 +160,12 @@ class Program:
         cfg = self.cfg
         factory = real_env or make_gym_env(self.preset.env_id, self._env_kwargs(i))
         name = f"rollout-{self.name}-{i}" + (f"-{generation}" if generation else "")
-        if real_env:  # anywhere: it reaches its robot through the real-robot actor
-            placement: dict[str, Any] = {}
-        else:
-            placement = requires(cfg.worker_resource, *self._sim_resources())
-            if cfg.spread_workers:
-                placement["scheduling_strategy"] = "SPREAD"
+        # A real robot's worker goes anywhere: it reaches its robot through the real-robot actor.
+        placement = self.needs["real-robot worker" if real_env else "rollout worker"].options()
+        if cfg.spread_workers and not real_env:
+            placement["scheduling_strategy"] = "SPREAD"
         return remote.RolloutActor.options(
-            num_cpus=cfg.worker_cpus, name=name, namespace=remote.NAMESPACE, **placement
+            name=name, namespace=remote.NAMESPACE, **placement
         ).remote(
             factory, self.d4pg, index=i, sigma=self._sigmas[i], seed=cfg.seed + i,
             random_steps=cfg.random_steps,
@@ -190,8 +179,7 @@ class Program:
         kwargs = self._env_kwargs(None) | evaluator_env_kwargs(cfg, env_id)
         name = f"evaluator-{self.name}" + (f"-{generation}" if generation else "")
         return remote.EvaluatorActor.options(
-            num_cpus=cfg.evaluator_cpus, name=name, namespace=remote.NAMESPACE,
-            **requires(cfg.evaluator_resource, *self._sim_resources()),
+            name=name, namespace=remote.NAMESPACE, **self.needs["evaluator"].options(),
         ).remote(
             make_gym_env(env_id, kwargs), self.d4pg,
             seed=cfg.seed + 10_000, video_every_s=cfg.video_interval_s,

@@ -13,7 +13,7 @@ import os
 import signal
 import sys
 import threading
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import replace
 from typing import Any
 
@@ -28,15 +28,41 @@ from robogym_ray.training.presets import d4pg_for, resolve_task
 from robogym_ray.training.program import Program
 
 
+class RunControl:
+    """A training driven from outside its loop (a Tune trial): ``on_eval`` gets each evaluator
+    window's figures (``TrainingLoop``'s), and ``stop(by)``, from any thread, ends the run as
+    a signal does - also when asked before the loop exists (while the actors start)."""
+
+    def __init__(self, on_eval: Callable[[dict[str, float]], None] | None = None) -> None:
+        self.on_eval = on_eval
+        self._lock = threading.Lock()
+        self._loop: TrainingLoop | None = None
+        self._asked: str | None = None
+
+    def stop(self, by: str) -> None:
+        with self._lock:
+            self._asked = self._asked or by
+            if self._loop is not None:
+                self._loop.request_stop(by)
+
+    def attach(self, loop: TrainingLoop) -> None:
+        with self._lock:
+            self._loop = loop
+            if self._asked is not None:
+                loop.request_stop(self._asked)
+
+
 def run_training(
     cfg: TrainConfig,
     d4pg_overrides: Mapping[str, Any] | None = None,
     emulation: EmulationConfig | None = None,
+    control: RunControl | None = None,
 ) -> dict:
     """Run one training to completion; returns the summary (also in ``summary.json``).
 
     ``emulation`` is what the ``cfg.emulated_workers`` workers' robots differ by (default
     ``EmulationConfig()``, the emulated robot ``robogym-ray serve --emulate-hardware`` serves).
+    ``control``: a caller's hooks into the running loop (a Tune trial's).
     """
     preset = resolve_task(cfg.task)
     d4pg = d4pg_for(preset, d4pg_overrides, cfg)
@@ -51,7 +77,9 @@ def run_training(
         if started_ray:
             ray.shutdown()
         raise
-    loop = TrainingLoop(program)
+    loop = TrainingLoop(program, on_eval=control.on_eval if control else None)
+    if control is not None:
+        control.attach(loop)
     previous = _stop_on_signals(loop)
     try:
         record = json.dumps(program.config_record(), indent=2).encode()
@@ -79,8 +107,7 @@ def _stop_on_signals(loop: TrainingLoop) -> dict[int, Any]:
         if loop.stop.is_set() and loop.stopped_by is not None:
             print(f"\n{name} again: exiting now, without the final checkpoint", file=sys.stderr)
             os._exit(128 + signum)  # Ray's threads would keep a normal exit waiting
-        loop.stopped_by = name
-        loop.stop.set()
+        loop.request_stop(name)
         print(f"\n{name}: stopping - writing the final checkpoint and summary "
               f"({name} again to exit at once)", file=sys.stderr, flush=True)  # fmt: skip
 

@@ -1,0 +1,129 @@
+"""What each actor of a run reserves from Ray, in one table: the builder (``program.py``) starts
+every actor with its row's options, ``check_resources`` sums the rows against the cluster, and a
+sweep turns the rows into a trial's placement-group bundles (one bundle per actor), so the three
+cannot disagree.
+
+A custom resource (``--learner-resource`` ...) marks the nodes an actor may run on: the actor
+asks for a token 0.01 of it, which says where, not how many.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from robogym_ray.errors import ConfigError
+from robogym_ray.training.config import TrainConfig
+
+MARK = 0.01
+"""The amount of a custom resource an actor asks for: it marks nodes, it does not count actors."""
+
+
+@dataclass(frozen=True)
+class ActorNeed:
+    """One kind of actor of a run and what each of them reserves."""
+
+    role: str
+    count: int
+    cpus: float
+    gpus: float = 0.0
+    marks: tuple[str, ...] = ()
+    """Custom resources the actor requires (a token ``MARK`` of each)."""
+
+    def options(self) -> dict[str, Any]:
+        """The Ray options that reserve this (``num_cpus``, ``num_gpus``, ``resources``)."""
+        out: dict[str, Any] = {"num_cpus": self.cpus}
+        if self.gpus:
+            out["num_gpus"] = self.gpus
+        if self.marks:
+            out["resources"] = {name: MARK for name in self.marks}
+        return out
+
+    def bundle(self) -> dict[str, float]:
+        """One actor's placement-group bundle."""
+        out = {"CPU": self.cpus, **{name: MARK for name in self.marks}}
+        if self.gpus:
+            out["GPU"] = self.gpus
+        return out
+
+
+def actor_needs(cfg: TrainConfig, learner_gpus: float = 0.0) -> tuple[ActorNeed, ...]:
+    """Every actor ``cfg`` starts (``learner_gpus``: the learner's, ``-1`` resolved).
+
+    With in-process robots ``--server-resource`` places the simulating actors themselves (their
+    robots run in them); real-robot workers go anywhere (they reach their robot through its
+    real-robot actor, which Ray places with its own 0.05 CPU).
+    """
+    sims = (cfg.server_resource,) if cfg.sim_path == "inprocess" and cfg.server_resource else ()
+    worker_marks = tuple(m for m in (cfg.worker_resource, *sims) if m)
+    needs = [
+        ActorNeed("learner", 1, cfg.learner_cpus, learner_gpus,
+                  (cfg.learner_resource,) if cfg.learner_resource else ()),
+        ActorNeed("rollout worker", cfg.workers, cfg.worker_cpus, marks=worker_marks),
+        ActorNeed("real-robot worker", len(cfg.real_robot), cfg.worker_cpus),
+        ActorNeed("real robot", len(cfg.real_robot), 0.05),
+        ActorNeed("evaluator", int(cfg.evaluator), cfg.evaluator_cpus,
+                  marks=tuple(m for m in (cfg.evaluator_resource, *sims) if m)),
+        # Counted on every path (as the CPU check always did): 0.05 of slack in-process.
+        ActorNeed("supervisor", 1, 0.05),
+    ]  # fmt: skip
+    if cfg.sim_path == "grpc":
+        servers = cfg.workers * cfg.envs_per_worker + int(cfg.evaluator)
+        marks = (cfg.server_resource,) if cfg.server_resource else ()
+        needs.append(ActorNeed("robot server", servers, cfg.server_cpus, marks=marks))
+    return tuple(n for n in needs if n.count > 0)
+
+
+def total_cpus(needs: Sequence[ActorNeed]) -> float:
+    return sum(n.count * n.cpus for n in needs)
+
+
+def bundles(needs: Sequence[ActorNeed], own: Mapping[str, float]) -> list[dict[str, float]]:
+    """A trial's placement-group bundles: ``own`` (the trial's driver, bundle 0) and one per
+    actor. One each, because Ray checks that an actor fits some bundle, not that the bundles
+    add up to every actor: a shared bundle would leave actors waiting, not refused."""
+    out = [dict(own)]
+    for need in needs:
+        out += [need.bundle() for _ in range(need.count)]
+    return out
+
+
+def check_fit(needs: Sequence[ActorNeed], available: Sequence[Mapping[str, float]]) -> None:
+    """Refuse, in one line, actors that the bundles ``available`` (a trial's, less its own)
+    cannot all hold: each actor must fit one bundle's room left by the actors placed before it
+    (largest first). Ray itself would only refuse an actor bigger than every bundle and leave
+    the rest waiting forever."""
+    room = [dict(b) for b in available]
+    for need in sorted(needs, key=lambda n: (-n.gpus, -n.cpus)):
+        for _ in range(need.count):
+            want = need.bundle()
+            slot = next((r for r in room if all(r.get(k, 0.0) + 1e-9 >= v
+                                                 for k, v in want.items())), None)  # fmt: skip
+            if slot is None:
+                raise ConfigError(
+                    f"the trial's actors need {describe(needs)} but its placement group holds "
+                    f"{_sum(available)} besides the trial's own bundle (no room for a "
+                    f"{need.role}: {want}); build its resources with "
+                    "robogym_ray.sweep.trial_resources(config)"
+                )
+            for k, v in want.items():
+                slot[k] -= v
+
+
+def describe(needs: Sequence[ActorNeed]) -> str:
+    """``learner 0.5 CPU + 2 rollout worker x 0.25 CPU + ...``."""
+    parts = []
+    for n in needs:
+        gpu = f" + {n.gpus:g} GPU" if n.gpus else ""
+        parts.append(f"{n.count} {n.role} x {n.cpus:g} CPU{gpu}" if n.count > 1
+                     else f"{n.role} {n.cpus:g} CPU{gpu}")  # fmt: skip
+    return " + ".join(parts)
+
+
+def _sum(available: Sequence[Mapping[str, float]]) -> str:
+    total: dict[str, float] = {}
+    for b in available:
+        for k, v in b.items():
+            total[k] = total.get(k, 0.0) + v
+    return ", ".join(f"{v:g} {k}" for k, v in sorted(total.items())) or "nothing"
