@@ -20,6 +20,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "manager": ("robogym_ray.distributed.manager", "Serve robo-gym's server manager (supervised)."),
     "resume": ("robogym_ray.distributed.resume", "Resume a paused real robot (operator)."),
     "train": ("robogym_ray.training.command", "Train D4PG with rollout workers on Ray."),
+    "sweep": ("robogym_ray.sweep.command", "Run trainings over a search space (Ray Tune)."),
     "tasks": ("robogym_ray.training.tasks", "List the training tasks and the env ids."),
     "evaluate": ("robogym_ray.evaluation", "Evaluate a policy for N episodes (success rates)."),
     "export": ("robogym_ray.export", "Export a policy as TorchScript or ONNX, plus JSON."),

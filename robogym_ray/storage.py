@@ -253,6 +253,19 @@ class RunStorage:
         infos = fs.get_file_info(pafs.FileSelector(key, allow_not_found=True))
         return sorted(PurePosixPath(i.path).name for i in infos if i.type == pafs.FileType.File)
 
+    def folders(self, rel: str = "") -> list[str]:
+        """Folder names directly under ``rel`` (empty when there is no such folder)."""
+        if self.is_local:
+            folder = self.path / rel
+            return sorted(p.name for p in folder.iterdir() if p.is_dir()) if folder.is_dir() else []
+        import pyarrow.fs as pafs
+
+        fs, key = self._fs(rel)
+        infos = fs.get_file_info(pafs.FileSelector(key, allow_not_found=True))
+        return sorted(
+            PurePosixPath(i.path).name for i in infos if i.type == pafs.FileType.Directory
+        )
+
     def holds_run(self) -> bool:
         """Whether a run has written here already (its config, summary or checkpoint)."""
         return any(

@@ -70,7 +70,7 @@ def run_training(
         raise ConfigError(f"--emulated-workers needs a robot task; {preset.env_id} has none")
     place = setup.run_place(cfg, preset.env_id)
     cfg = replace(cfg, run_name=place.name)  # config.json records the name
-    started_ray = setup.ensure_ray(cfg)
+    started_ray = setup.ensure_ray(cfg.address, cfg.num_cpus)
     try:
         program = Program(cfg, d4pg, preset, emulation or EmulationConfig(), place)
     except BaseException:

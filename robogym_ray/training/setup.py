@@ -29,14 +29,15 @@ from robogym_ray.training.presets import resolve_task
 log = logging.getLogger(__name__)
 
 
-def ensure_ray(cfg: TrainConfig) -> bool:
-    """Join ``cfg.address`` or start an embedded local Ray; True if this call started it."""
+def ensure_ray(address: str | None, num_cpus: float | None) -> bool:
+    """Join ``address`` or start an embedded local Ray of ``num_cpus`` (None: this machine's);
+    True if this call started it. In a Tune trial Ray is up already: nothing is done."""
     if ray.is_initialized():
         return False
-    if cfg.address:
-        join_ray(cfg.address, log_to_driver=False)
+    if address:
+        join_ray(address, log_to_driver=False)
     else:
-        start_local_ray(cfg.num_cpus, log_to_driver=False)
+        start_local_ray(num_cpus, log_to_driver=False)
     return True
 
 

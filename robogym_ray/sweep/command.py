@@ -1,0 +1,74 @@
+"""``robogym-ray sweep``: seeds and recipes as concurrent trainings (Ray Tune trials), and
+``robogym-ray sweep summary NAME``: the sweep's table and figure."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from robogym_ray.config import add_config_args, config_from_args
+from robogym_ray.sweep.config import SweepConfig
+
+HELP_GROUPS: dict[str, tuple[str, ...]] = {
+    "the trainings (a base config, settings on top, a search space)": (
+        "config", "set", "space", "seeds", "samples"),
+    "scheduling": ("max_concurrent", "scheduler", "metric", "mode", "time_attr", "grace_period",
+                   "reduction_factor"),
+    "placement (each trial's actors in a placement group of its own)": (
+        "trial_cpus", "placement", "address", "num_cpus"),
+    "storage": ("name", "storage", "resume"),
+}  # fmt: skip
+"""``sweep --help``'s sections: every SweepConfig field in one."""
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.usage = ("%(prog)s [--config FILE] [--set KEY=VALUE ...] [--space KEY=SPEC ...] "
+                    "[options]\n       %(prog)s summary NAME [--storage STORAGE]")  # fmt: skip
+    parser.epilog = (
+        "example: robogym-ray sweep --config experiments/configs/navigation.json "
+        "--space d4pg.sigma=0.2,0.4 --seeds 0 1 --scheduler asha --name nav-sigma"
+    )
+    add_config_args(parser, SweepConfig, groups=HELP_GROUPS)
+    actions = parser.add_subparsers(dest="sweep_action", metavar="summary")
+    summary = actions.add_parser(
+        "summary", prog="robogym-ray sweep summary",
+        help="the sweep's table and figure (written into its folder)",
+        description="One table of the sweep's trials (settings, final and best metric, time to "
+        "90 and 95 %% success, env steps/s, how each ended) and one figure (success against "
+        "wall time) written beside it; the best trial's checkpoint.",
+    )  # fmt: skip
+    summary.add_argument("sweep_name", metavar="NAME", help="the sweep's folder name")
+    summary.add_argument(
+        "--storage",
+        dest="summary_storage",
+        default=None,
+        help="where the sweeps are, as sweep --storage (default: runs)",
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    if getattr(args, "sweep_action", None) == "summary":
+        from robogym_ray.sweep.report import summarize
+
+        print(summarize(args.sweep_name, args.summary_storage), flush=True)
+        return 0
+    from robogym_ray.sweep.plan import plan_sweep
+
+    cfg = config_from_args(SweepConfig, args)
+    plan = plan_sweep(cfg)  # a bad space costs no Ray start
+    from robogym_ray.sweep.report import summarize
+    from robogym_ray.sweep.tuner import run_sweep
+
+    argv = sys.argv[sys.argv.index("sweep") + 1 :] if "sweep" in sys.argv else []
+    grid = run_sweep(plan, argv)
+    for result in grid:
+        if result.error is not None:  # its one line: the trial's own error, not Tune's wrapping
+            print(f"trial {result.path.rsplit('/', 1)[-1]}: {_last_line(result.error)}",
+                  file=sys.stderr)  # fmt: skip
+    print(summarize(plan.name, plan.root), flush=True)
+    return 0
+
+
+def _last_line(error: BaseException) -> str:
+    lines = [line for line in str(error).splitlines() if line.strip()]
+    return lines[-1] if lines else type(error).__name__

@@ -1,0 +1,163 @@
+"""``robogym-ray sweep summary NAME``: one table of the sweep's trials and one figure (success
+against wall time, a line per trial) written beside it, read from the sweep's folder alone
+(Tune's ``result.json`` per trial, each run's ``summary.json``): no Ray, any machine that
+reaches the storage. The figure needs matplotlib (the experiments extra); without it the table
+is still written, and the line says so."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from robogym_ray.errors import ConfigError
+from robogym_ray.storage import RunStorage, resolve_root
+from robogym_ray.sweep.plan import RECORD, STATE
+
+TABLE = "summary.md"
+FIGURE = "success.png"
+MARKS = (0.9, 0.95)
+
+
+@dataclass
+class Trial:
+    name: str
+    settings: dict[str, Any]
+    results: list[dict[str, Any]] = field(default_factory=list)
+    run: dict[str, Any] = field(default_factory=dict)
+    """The run's ``summary.json`` (empty while it runs, or if its driver died)."""
+
+    def final(self, metric: str) -> float | None:
+        value = self.run.get(metric, next((r[metric] for r in reversed(self.results)
+                                           if metric in r), None))  # fmt: skip
+        return None if value is None else float(value)
+
+    def best(self, metric: str, mode: str) -> float | None:
+        values = [float(r[metric]) for r in self.results if metric in r]
+        return (max if mode == "max" else min)(values) if values else None
+
+    def time_to(self, rate: float) -> float | None:
+        """Wall seconds (the trial's, across resumes) of its first window at ``rate``."""
+        return next((float(r["wall_s"]) for r in self.results
+                     if r.get("eval/success_rate", 0.0) >= rate), None)  # fmt: skip
+
+    def ended(self) -> str:
+        if self.run.get("ended"):
+            by = self.run.get("stopped_by") or self.run.get("ended_by", "")
+            return f"{self.run['ended']} ({by})" if by else str(self.run["ended"])
+        return "no summary (running, or its driver died)"
+
+    def checkpoint(self) -> str:
+        if self.run.get("checkpoint"):
+            return str(self.run["checkpoint"])
+        last = self.results[-1] if self.results else {}
+        return f"{last['run']}/checkpoints/learner.pt" if last.get("run") else ""
+
+
+def read_trials(folder: RunStorage, searched: Sequence[str]) -> list[Trial]:
+    """Every trial folder (one holding Tune's ``result.json``) of the sweep, by name."""
+    trials = []
+    for name in folder.folders():
+        sub = folder.child(name)
+        if not sub.exists("result.json"):
+            continue
+        lines = sub.read_bytes("result.json").decode().splitlines()
+        results = [json.loads(line) for line in lines if line.strip()]
+        config = results[-1].get("config", {}) if results else {}
+        short = str(results[-1].get("trial_id", name)) if results else name
+        trial = Trial(short, {key: _dotted(config, key) for key in searched}, results)
+        run = next((r["run"] for r in reversed(results) if r.get("run")), None)
+        if run and RunStorage(run).exists("summary.json"):
+            trial.run = json.loads(RunStorage(run).read_bytes("summary.json"))
+        trials.append(trial)
+    return trials
+
+
+def _dotted(config: Mapping[str, Any], key: str) -> Any:
+    section, _, name = key.partition(".")
+    return config.get(section, {}).get(name)
+
+
+def table(trials: Sequence[Trial], metric: str, mode: str) -> str:
+    """A Markdown table: a row per trial, its settings, final and best metric, time to 90 and
+    95 % success, env steps/s and how it ended."""
+    keys = list(trials[0].settings) if trials else []
+    head = ["trial", *keys, f"final {metric}", "best", "t 90 % (min)", "t 95 % (min)",
+            "env steps/s", "ended"]  # fmt: skip
+    rows = []
+    for t in trials:
+        rate = t.run.get("throughput/env_steps_per_s") or next(
+            (r["throughput/env_steps_per_s"] for r in reversed(t.results)
+             if "throughput/env_steps_per_s" in r), None)  # fmt: skip
+        rows.append([t.name, *(json.dumps(t.settings[k]) for k in keys),
+                     _num(t.final(metric)), _num(t.best(metric, mode)),
+                     *(_num(None if (s := t.time_to(m)) is None else s / 60) for m in MARKS),
+                     _num(rate, 0), t.ended()])  # fmt: skip
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    return "\n".join([*lines, *("| " + " | ".join(map(str, r)) + " |" for r in rows)])
+
+
+def _num(value: float | None, digits: int = 3) -> str:
+    return "-" if value is None else f"{value:.{digits}f}"
+
+
+def best_trial(trials: Sequence[Trial], metric: str, mode: str) -> Trial | None:
+    scored = [t for t in trials if t.final(metric) is not None]
+    if not scored:
+        return None
+    sign = 1.0 if mode == "max" else -1.0
+    return max(scored, key=lambda t: sign * (t.final(metric) or 0.0))
+
+
+def figure(trials: Sequence[Trial], path: str) -> bool:
+    """Success against wall time, a line per trial; False when matplotlib is missing."""
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return False
+    fig, ax = plt.subplots(figsize=(7, 4))
+    for t in trials:
+        points = [(r["wall_s"] / 60, r["eval/success_rate"]) for r in t.results
+                  if "eval/success_rate" in r and "wall_s" in r]  # fmt: skip
+        if points:
+            label = ", ".join(f"{k}={v}" for k, v in t.settings.items()) or t.name
+            ax.plot(*zip(*points, strict=True), label=label)
+    ax.set_xlabel("wall time (min)")
+    ax.set_ylabel("evaluator success rate (last 100 episodes)")
+    ax.set_ylim(-0.02, 1.02)
+    ax.legend(fontsize="small")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return True
+
+
+def summarize(name: str, storage: str | None) -> str:
+    """Write the table and the figure into the sweep's folder; the text to print."""
+    folder = RunStorage(resolve_root(storage or "runs")).child(name)
+    if not folder.exists(RECORD) and not folder.exists(STATE):
+        raise ConfigError(f"sweep summary: no sweep in {folder.location()} (--storage names "
+                          "where the sweeps are)")  # fmt: skip
+    record = json.loads(folder.read_bytes(RECORD)) if folder.exists(RECORD) else {}
+    metric, mode = record.get("metric", "eval/success_rate"), record.get("mode", "max")
+    trials = read_trials(folder, record.get("searched", []))
+    text = table(trials, metric, mode)
+    folder.write_bytes(TABLE, (text + "\n").encode(), "sweep table")
+    staged = folder.staging("")
+    drawn = figure(trials, str(staged / FIGURE))
+    if drawn:
+        folder.publish(staged / FIGURE, FIGURE, "sweep figure")
+    lines = [text, "", f"table:  {folder.location(TABLE)}"]
+    lines.append(
+        f"figure: {folder.location(FIGURE)}"
+        if drawn
+        else "figure: not drawn: matplotlib is missing (pip install -e '.[experiments]')"
+    )
+    best = best_trial(trials, metric, mode)
+    if best is not None:
+        lines.append(f"best trial ({metric} {mode}): {best.name}, checkpoint {best.checkpoint()}")
+    return "\n".join(lines)
