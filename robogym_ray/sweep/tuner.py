@@ -70,7 +70,9 @@ def tune_config(plan: SweepPlan) -> tune.TuneConfig:
 
         scheduler = ASHAScheduler(
             time_attr=cfg.time_attr, metric=cfg.metric, mode=cfg.mode,
-            max_t=max(plan.budget(), asha_grace(plan)), grace_period=asha_grace(plan),
+            # Trials end themselves at their budget; a result at max_t would be stopped, and a
+            # run's last window (its final evaluation) can be at or past its budget.
+            max_t=2 * max(plan.budget(), asha_grace(plan)), grace_period=asha_grace(plan),
             reduction_factor=cfg.reduction_factor,
         )  # fmt: skip
     return tune.TuneConfig(num_samples=cfg.samples, scheduler=scheduler,

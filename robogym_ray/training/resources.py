@@ -103,7 +103,7 @@ def check_fit(needs: Sequence[ActorNeed], available: Sequence[Mapping[str, float
             if slot is None:
                 raise ConfigError(
                     f"the trial's actors need {describe(needs)} but its placement group holds "
-                    f"{_sum(available)} besides the trial's own bundle (no room for a "
+                    f"{_sum(available)} besides the trial's own bundle (no room for the "
                     f"{need.role}: {want}); build its resources with "
                     "robogym_ray.sweep.trial_resources(config)"
                 )
