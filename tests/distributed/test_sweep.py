@@ -1,0 +1,127 @@
+"""Sweeps on a real local Ray and Tune (Pendulum, one worker per trial, seconds each): trials
+two at a time with their files under the sweep's storage, ASHA stopping the trials a setting
+makes worse, a sweep whose driver was SIGKILLed resumed from its trials' checkpoints, and a
+trial whose actors need more than its bundles refused before it starts."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+import ray
+
+from robogym_ray.cli import main
+
+pytestmark = [pytest.mark.ray, pytest.mark.usefixtures("ray_cluster")]
+
+# One worker of four envs, no video or timed snapshots, small networks and batches: a trial
+# is its actors' start-up and a few hundred Pendulum steps; the learner steps from 100
+# transitions on (min_replay_size), one step per env step.
+BASE = ["--set", "task=pendulum", "workers=1", "envs_per_worker=4", "random_steps=100",
+        "final_eval_episodes=1", "video_interval_s=0", "policy_snapshot_every_s=0",
+        "d4pg.min_replay_size=100", "d4pg.policy_hidden=[32,32]", "d4pg.critic_hidden=[32,32]",
+        "d4pg.batch_size=32", "d4pg.samples_per_insert=32"]  # fmt: skip
+
+
+def trial_results(sweep: Path) -> dict[str, list[dict[str, Any]]]:
+    """Tune's results of each trial of the sweep in ``sweep``, by trial folder."""
+    return {
+        d.name: [json.loads(line) for line in (d / "result.json").read_text().splitlines()]
+        for d in sorted(sweep.iterdir())
+        if (d / "result.json").is_file()
+    }
+
+
+def run_summaries(sweep: Path) -> dict[str, dict[str, Any]]:
+    return {d.name: json.loads((d / "summary.json").read_text())
+            for d in sorted((sweep / "runs").iterdir())}  # fmt: skip
+
+
+def test_four_trials_two_at_a_time_and_asha_stops_the_worse(tmp_path: Path) -> None:
+    # min_replay_size=100000: that trial's learner never steps. ASHA compares learner_steps
+    # after 2 s of a trial's wall time (each ends at 5 s): a later such trial trails a
+    # recorded good one and is stopped.
+    argv = [*BASE, "max_wall_s=5", "total_steps=1000000", "--space",
+            "d4pg.min_replay_size=100,100000", "--seeds", "0", "1", "--max-concurrent", "2",
+            "--scheduler", "asha", "--metric", "learner_steps", "--time-attr", "wall_s",
+            "--grace-period", "2", "--storage", str(tmp_path), "--name", "four"]  # fmt: skip
+    assert main(["sweep", *argv]) == 0
+    sweep = tmp_path / "four"
+    results, runs = trial_results(sweep), run_summaries(sweep)
+    assert len(results) == 4 and len(runs) == 4
+    for run in runs.values():  # every trial's own files under the sweep's storage
+        assert Path(run["logdir"]).parent == sweep / "runs"
+        assert Path(run["checkpoint"]).is_file()
+    # Two at a time: from each run's start (config.json) to its end (summary.json).
+    spans = [((sweep / "runs" / n / "config.json").stat().st_mtime,
+              (sweep / "runs" / n / "summary.json").stat().st_mtime) for n in runs]  # fmt: skip
+    overlaps = [sum(a <= t < b for a, b in spans) for t, _ in spans]
+    assert max(overlaps) == 2
+    good = [r for r in runs.values() if r["eval_history"] and r["learner_steps"] > 0]
+    worse = [r for r in runs.values() if r["learner_steps"] == 0]
+    assert len(good) == 2 and all(r["ended"] == "completed" for r in good)
+    stopped = [r for r in worse if r["ended"] == "stopped"]
+    assert stopped, [(r["ended"], r["env_steps"]) for r in worse]
+    for run in stopped:  # ended as a stopped run ends: final checkpoint and summary
+        assert run["stopped_by"] == "scheduler" and Path(run["checkpoint"]).is_file()
+    table = (sweep / "summary.md").read_text()
+    assert len(table.splitlines()) == 2 + 4 and "stopped (scheduler)" in table
+    assert (sweep / "success.png").stat().st_size > 0
+
+
+def test_a_sweep_goes_on_from_its_checkpoints_after_its_driver_is_killed(
+    tmp_path: Path,
+) -> None:
+    argv = [*BASE, "total_steps=1500", "checkpoint_every=100", "--seeds", "0", "1",
+            "--max-concurrent", "2", "--storage", str(tmp_path), "--name", "killed",
+            "--address", ray.get_runtime_context().gcs_address]  # fmt: skip
+    driver = subprocess.Popen([sys.executable, "-m", "robogym_ray.cli", "sweep", *argv],
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
+    sweep = tmp_path / "killed"
+    try:
+        deadline = time.monotonic() + 120
+        # Two Tune checkpoints a trial: Tune has saved the experiment's state since the first.
+        while sum(len(list(d.glob("checkpoint_*"))) >= 2 for d in sweep.glob("Training*")) < 2:
+            assert driver.poll() is None, "the sweep ended before it was killed"
+            assert time.monotonic() < deadline, "no checkpoints in 120 s"
+            time.sleep(0.2)
+    finally:
+        driver.kill()  # SIGKILL: no Tune shutdown, no summary; its trials die with it
+        driver.wait()
+    assert not list((sweep / "runs").glob("*/summary.json"))
+    assert main(["sweep", "--resume", "killed", "--storage", str(tmp_path)]) == 0
+    runs = run_summaries(sweep)
+    assert len(runs) == 2
+    for run in runs.values():
+        assert run["ended"] == "completed" and run["resumed"]
+        assert run["learner_restored_from_step"] >= 100  # from its checkpoint, not from 0
+        assert 0 < run["this_part"]["env_steps"] < 1500
+    for results in trial_results(sweep).values():
+        steps = [r["env_steps"] for r in results]
+        assert steps[-1] >= 1500 and results[-1]["done"]
+
+
+def test_a_trial_whose_actors_need_more_than_its_bundles_is_refused(tmp_path: Path) -> None:
+    from ray import tune
+
+    from robogym_ray.sweep.trial import TrainingTrial
+
+    small = tune.PlacementGroupFactory([{"CPU": 0.1}, {"CPU": 0.5}])  # the learner's only
+    tuner = tune.Tuner(
+        tune.with_resources(TrainingTrial, small),
+        param_space={
+            "train": {"task": "pendulum", "workers": 1},
+            "sweep": {"runs": str(tmp_path / "runs")},
+        },  # fmt: skip
+        run_config=tune.RunConfig(name="small", storage_path=str(tmp_path), verbose=0),
+    )
+    (result,) = tuner.fit()
+    line = str(result.error).strip().splitlines()[-1]
+    assert "placement group holds 0.5 CPU besides the trial's own bundle" in line
+    assert "no room for the rollout worker" in line and "trial_resources" in line
+    assert not (tmp_path / "runs").exists()  # refused before the run started
