@@ -10,8 +10,9 @@ from collections import defaultdict
 from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parents[1] / "robogym_ray"
-RAY_ALLOWED = {"distributed", "training"}
-"""Folders that may import Ray: the actor definitions and the driver that runs them."""
+RAY_ALLOWED = {"distributed", "training", "sweep"}
+"""Folders that may import Ray: the actor definitions, the driver that runs them, and the
+sweep that runs drivers as Ray Tune trials."""
 
 
 def imports(path: Path) -> set[str]:
