@@ -32,7 +32,10 @@
 #
 # Rehearse here before spending device time (no GPU, every part and switch exercised, short):
 #   GPU_NODE_DEVICE=cpu GPU_NODE_SECONDS=1 GPU_NODE_TRAIN_S=15 GPU_NODE_WORKERS="1 2" \
-#       bash benchmarks/gpu_node.sh throughput /tmp/rehearsal
+#       GPU_NODE_CPUS=16 bash benchmarks/gpu_node.sh throughput /tmp/rehearsal
+#   GPU_NODE_DEVICE=cpu GPU_NODE_CPUS=16 GPU_NODE_LEARN_WORKERS=2 \
+#       bash benchmarks/gpu_node.sh learning /tmp/rehearsal-learning 60
+# (docs/benchmarks.md has the whole rehearsal: a bare python3.12 venv, the kit, no network.)
 set -euo pipefail
 part=${1:?throughput, learning, learner, versus or profile}
 out=${2:?output folder}
@@ -42,6 +45,9 @@ mkdir -p "$out"
 export PYTHONUNBUFFERED=1 RAY_AUTH_MODE=disabled
 device=${GPU_NODE_DEVICE:-cuda}
 seconds=${GPU_NODE_SECONDS:-5}
+# Ray's CPUs: the node's cores. A rehearsal on a small machine names the node's 16, so every run
+# reserves what it will there (the cores oversubscribed, which only slows it).
+cpus=${GPU_NODE_CPUS:-$(nproc)}
 if ! (cd / && "$py" -c "import ray, pybullet, gymnasium") 2>/dev/null; then
   bash "$root/benchmarks/device_kit.sh" install /tmp/robogym-kit
   export PYTHONPATH=/tmp/robogym-kit${PYTHONPATH:+:$PYTHONPATH}
@@ -123,7 +129,6 @@ throughput)
   else
     gpu_d4pg='{"compile": "reduce-overhead"}'
   fi
-  cpus=$(nproc)
   train_s=${GPU_NODE_TRAIN_S:-30}
   for workers in ${GPU_NODE_WORKERS:-2 4 8 14}; do
     echo "== training, $workers workers, GPU learner $gpu_d4pg" | tee -a "$out/errors.log"
@@ -145,14 +150,14 @@ learning)
   wall=${3:-360}
   runs=/tmp/node-runs
   rm -rf "$runs"
-  # A rehearsal on a small CPU machine shrinks the recipe's 14 x 1 CPU to what fits there.
+  # A rehearsal on a small machine may run fewer of the recipe's workers (GPU_NODE_LEARN_WORKERS).
   extra=()
-  [ "$device" = cuda ] || extra=(--workers 1 --worker-cpus 0.25 --learner-cpus 0.5)
+  [ -z "${GPU_NODE_LEARN_WORKERS:-}" ] || extra=(--workers "$GPU_NODE_LEARN_WORKERS")
   echo "== learning, ${wall} s" | tee -a "$out/errors.log"
   (cd / && timeout $((wall + 90)) "$py" -m robogym_ray.cli train \
     --config "$root/experiments/configs/navigation-node.json" --max-wall-s "$wall" \
     --total-steps 1000000000 --logdir "$runs" --run-name navigation-node-seed0 --seed 0 \
-    --no-progress --num-cpus "$(nproc)" "${extra[@]}") 2>&1 | tail -40 >>"$out/errors.log" ||
+    --no-progress --num-cpus "$cpus" "${extra[@]}") 2>&1 | tail -40 >>"$out/errors.log" ||
     echo "== learning: stopped" | tee -a "$out/errors.log"
   cp "$runs/navigation-node-seed0/summary.json" "$out/summary.json" 2>/dev/null || true
   tar -czf "$out/learning.tar.gz" -C "$runs" --exclude='*.replay.npz' navigation-node-seed0 ||
