@@ -73,8 +73,6 @@ class Program:
     ) -> None:
         self.cfg, self.d4pg, self.preset, self.emulation = cfg, d4pg, preset, emulation
         self.name = place.name
-        # Each actor's Ray options: one row each of the table a sweep's bundles come from.
-        self.needs: dict[str, ActorNeed] = {n.role: n for n in actor_needs(cfg, learner_gpus(cfg))}
         setup.check_resources(cfg)
         check_reachable(place.root)  # before anything of the run is written or started
         self.storage = place.storage
@@ -105,7 +103,7 @@ class Program:
         if cfg.init_from:
             seed_checkpoint(cfg.init_from, self.storage, d4pg, self.obs_dim, self.act_dim)
         self.learner = remote.LearnerActor.options(
-            **self.needs["learner"].options(),
+            **self._need("learner").options(),
             max_restarts=3,
             max_task_retries=0,
             name=f"learner-{self.name}",
@@ -128,6 +126,11 @@ class Program:
         selecting = cfg.select_episodes and self.evaluator is not None
         self.selector = SnapshotSelector(staged, checkpoints) if selecting else None
         self.snapshots = PolicySnapshots(staged, cfg.policy_snapshot_every_s, checkpoints)
+
+    def _need(self, role: str) -> ActorNeed:
+        """An actor's Ray options: its row of the table a sweep's bundles come from (read when
+        the actor starts: a replacement follows the config as it is then)."""
+        return next(n for n in actor_needs(self.cfg, learner_gpus(self.cfg)) if n.role == role)
 
     def _env_kwargs(self, index: int | None) -> dict[str, Any]:
         """Sim envs build their robots in their own process (``sim_path="inprocess"``) or lease
@@ -161,7 +164,7 @@ class Program:
         factory = real_env or make_gym_env(self.preset.env_id, self._env_kwargs(i))
         name = f"rollout-{self.name}-{i}" + (f"-{generation}" if generation else "")
         # A real robot's worker goes anywhere: it reaches its robot through the real-robot actor.
-        placement = self.needs["real-robot worker" if real_env else "rollout worker"].options()
+        placement = self._need("real-robot worker" if real_env else "rollout worker").options()
         if cfg.spread_workers and not real_env:
             placement["scheduling_strategy"] = "SPREAD"
         return remote.RolloutActor.options(
@@ -179,7 +182,7 @@ class Program:
         kwargs = self._env_kwargs(None) | evaluator_env_kwargs(cfg, env_id)
         name = f"evaluator-{self.name}" + (f"-{generation}" if generation else "")
         return remote.EvaluatorActor.options(
-            name=name, namespace=remote.NAMESPACE, **self.needs["evaluator"].options(),
+            name=name, namespace=remote.NAMESPACE, **self._need("evaluator").options(),
         ).remote(
             make_gym_env(env_id, kwargs), self.d4pg,
             seed=cfg.seed + 10_000, video_every_s=cfg.video_interval_s,
