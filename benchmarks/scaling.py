@@ -48,7 +48,9 @@ def train_run(task: str, workers: int, envs: int, args: argparse.Namespace, run:
             **json.loads(args.d4pg)}  # fmt: skip
     with tempfile.TemporaryDirectory(prefix="scaling-") as logdir:
         config = Path(logdir) / "config.json"
-        config.write_text(json.dumps({"extends": str(CONFIG), "d4pg": d4pg}))
+        # Scalars every 2 s: enough points for the late rate of a 30-s run (late_rates).
+        config.write_text(json.dumps({"extends": str(CONFIG), "d4pg": d4pg,
+                                      "train": {"log_every_s": 2.0}}))  # fmt: skip
         # The CLI by its module: a node with the repository on PYTHONPATH has no robogym-ray.
         cmd = [sys.executable, "-m", "robogym_ray.cli", "train", "--config", str(config),
                "--task", TASKS[task],
@@ -65,6 +67,7 @@ def train_run(task: str, workers: int, envs: int, args: argparse.Namespace, run:
         if done.returncode != 0:
             raise SystemExit(f"{run} failed:\n{done.stderr[-3000:]}")
         s = json.loads((Path(logdir) / run / "summary.json").read_text())
+        late = late_rates(Path(logdir) / run)
     env_rate = s["throughput/env_steps_per_s"]
     return {
         "task": task, "workers": workers, "envs": envs, "batch": args.batch,
@@ -76,8 +79,33 @@ def train_run(task: str, workers: int, envs: int, args: argparse.Namespace, run:
         "learner_steps_per_s": round(s["throughput/learner_steps_per_s"], 2),
         "collect_calls_per_s": round(env_rate / 50, 2),  # steps_per_call 50 (the recipe's)
         "object_store_mb_per_s": round(env_rate * BYTES_PER_TRANSITION / 1e6, 3),
-        "load_before": round(load, 2), "wall_s": s["wall_s"],
+        "load_before": round(load, 2), "wall_s": s["wall_s"], **late,
     }  # fmt: skip
+
+
+def late_rates(run_dir: Path) -> dict:
+    """Env and learner steps/s over the run's second half, from its TensorBoard events (a
+    scalar's step is the env step; ``learner/steps`` is its value): the rate once the workers'
+    start and the replay's warm-up are behind, which a short run's whole-wall rate hides."""
+    try:
+        from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+    except ImportError:
+        return {}
+    events = EventAccumulator(str(run_dir), size_guidance={"scalars": 0})
+    events.Reload()
+    try:
+        series = events.Scalars("learner/steps")
+    except KeyError:
+        return {}
+    if len(series) < 3:
+        return {}
+    mid, last = series[len(series) // 2], series[-1]
+    span = last.wall_time - mid.wall_time
+    return {
+        "late_env_steps_per_s": round((last.step - mid.step) / span, 1),
+        "late_learner_steps_per_s": round((last.value - mid.value) / span, 2),
+        "late_span_s": round(span, 1),
+    }
 
 
 def train(args: argparse.Namespace) -> None:
