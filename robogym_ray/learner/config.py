@@ -118,12 +118,14 @@ class D4PGConfig:
     on a GPU), 'max-autotune'); empty: not compiled. The first steps pay the compilation."""
     bf16: bool = False
     """Run the networks under bf16 autocast (the losses and the optimizer stay float32)."""
-    whole_step: str = "off"
+    whole_step: str = "auto"
     """'on': every learner step reads no host value (device draws, schedules and counters on
     the learner's device, the replay there too) and a GPU replays each block of steps as one
-    CUDA graph (a CPU runs the same steps eagerly); 'off': the host-stepped loop; 'auto': 'on'
-    on CUDA when ``compile`` is empty. For one seed it samples other transitions than 'off'
-    (torch's generator, not NumPy's); given the same draws, the same steps."""
+    CUDA graph (a CPU runs the same steps eagerly); 'off': the host-stepped loop; 'auto' (the
+    default): 'on' on CUDA when ``compile`` is empty, where an H100 took 5-7x the compiled
+    step's updates/s (docs/benchmarks.md 16), 'off' on a CPU, where it gains nothing. For one
+    seed it samples other transitions than 'off' (torch's generator, not NumPy's); given the
+    same draws, the same steps."""
     rate_tolerance: int = 0
     """0: the learner takes its steps inside the call that inserted the transitions paying for
     them. T > 0 (at least ``sgd_steps_per_sample``): a learner thread steps between inserts, up
