@@ -222,7 +222,7 @@ class D4PGLearner:
         if steps <= 0:
             return {}
         if self.whole is not None:
-            return self._run_whole(steps)
+            return self._metrics(*self.whole.run(steps), steps)
         sums, beta_sum, lr_sum, done = None, 0.0, 0.0, 0
         while done < steps:
             k = min(c.sgd_steps_per_sample, steps - done)
@@ -248,21 +248,6 @@ class D4PGLearner:
                 beta_sum += beta
             done += k
         return self._metrics((sums / steps).cpu().numpy(), beta_sum, lr_sum, steps)
-
-    def _run_whole(self, steps: int) -> dict[str, float]:
-        """``run`` by :class:`WholeStep` blocks; the schedules' values for the metrics are the
-        host's copies of what the device computed from the same counter."""
-        c, whole = self.config, self.whole
-        assert whole is not None
-        beta_sum, lr_sum, done = 0.0, 0.0, 0
-        while done < steps:
-            k = min(c.sgd_steps_per_sample, steps - done)
-            beta_sum += k * self.beta
-            lr_sum += sum(self.lr_scale_at(self.num_steps + j) for j in range(k))
-            whole.run_block(k)
-            self.num_steps += k
-            done += k
-        return self._metrics((whole.take_sums() / steps).numpy(), beta_sum, lr_sum, steps)
 
     def _metrics(
         self, mean: np.ndarray, beta_sum: float, lr_sum: float, steps: int

@@ -65,6 +65,20 @@ class WholeStep:
         self.eager_blocks = 0
         self.step.fill_(self.learner.num_steps)
 
+    def run(self, steps: int) -> tuple[Any, float, float]:
+        """``steps`` learner steps in blocks of ``sgd_steps_per_sample``: (the metrics' means,
+        the summed importance exponent and learning-rate scale). The schedules' values are the
+        host's copies of what the device computed from the same counter."""
+        learner, done, beta_sum, lr_sum = self.learner, 0, 0.0, 0.0
+        while done < steps:
+            k = min(learner.config.sgd_steps_per_sample, steps - done)
+            beta_sum += k * learner.beta
+            lr_sum += sum(learner.lr_scale_at(learner.num_steps + j) for j in range(k))
+            self.run_block(k)
+            learner.num_steps += k
+            done += k
+        return (self.take_sums() / steps).numpy(), beta_sum, lr_sum
+
     def run_block(self, k: int) -> None:
         """``k`` learner steps from one sampled block (``learner.num_steps`` is the caller's)."""
         full = k == self.learner.config.sgd_steps_per_sample
