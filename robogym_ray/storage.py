@@ -242,29 +242,26 @@ class RunStorage:
 
     def names(self, rel: str = "") -> list[str]:
         """File names directly under ``rel`` (empty when there is no such folder)."""
+        return self._listed(rel, folders=False)
+
+    def folders(self, rel: str = "") -> list[str]:
+        """Folder names directly under ``rel`` (empty when there is no such folder)."""
+        return self._listed(rel, folders=True)
+
+    def _listed(self, rel: str, folders: bool) -> list[str]:
         if self.is_local:
             folder = self.path / rel
             if not folder.is_dir():
                 return []
-            return sorted(p.name for p in folder.iterdir() if p.is_file())
+            return sorted(
+                p.name for p in folder.iterdir() if (p.is_dir() if folders else p.is_file())
+            )
         import pyarrow.fs as pafs
 
+        kind = pafs.FileType.Directory if folders else pafs.FileType.File
         fs, key = self._fs(rel)
         infos = fs.get_file_info(pafs.FileSelector(key, allow_not_found=True))
-        return sorted(PurePosixPath(i.path).name for i in infos if i.type == pafs.FileType.File)
-
-    def folders(self, rel: str = "") -> list[str]:
-        """Folder names directly under ``rel`` (empty when there is no such folder)."""
-        if self.is_local:
-            folder = self.path / rel
-            return sorted(p.name for p in folder.iterdir() if p.is_dir()) if folder.is_dir() else []
-        import pyarrow.fs as pafs
-
-        fs, key = self._fs(rel)
-        infos = fs.get_file_info(pafs.FileSelector(key, allow_not_found=True))
-        return sorted(
-            PurePosixPath(i.path).name for i in infos if i.type == pafs.FileType.Directory
-        )
+        return sorted(PurePosixPath(i.path).name for i in infos if i.type == kind)
 
     def holds_run(self) -> bool:
         """Whether a run has written here already (its config, summary or checkpoint)."""
