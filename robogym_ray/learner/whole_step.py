@@ -42,7 +42,7 @@ METRICS = ("critic_loss", "policy_loss", "critic_grad_norm", "policy_grad_norm",
 
 
 class WholeStep:
-    """Blocks of learner steps that read no host value; captured once per block size on CUDA."""
+    """Blocks of learner steps that read no host value; a full block captured once on CUDA."""
 
     def __init__(self, learner: D4PGLearner) -> None:
         self.learner = learner
@@ -51,7 +51,8 @@ class WholeStep:
         self.step = torch.zeros((), dtype=torch.float64, device=device)
         """The learner's step count as the device sees it (``learner.num_steps``)."""
         self.sums = torch.zeros(len(METRICS), dtype=torch.float32, device=device)
-        self.graphs: dict[int, torch.cuda.CUDAGraph] = {}
+        self.graph: torch.cuda.CUDAGraph | None = None
+        """The captured full block (``sgd_steps_per_sample`` steps): the only one replayed."""
         self.eager_blocks = 0
         self.draw = self._uniform
         """Where a block's uniform draws come from (a test aligns them with the host path's)."""
@@ -61,7 +62,7 @@ class WholeStep:
 
     def forget(self) -> None:
         """After a restore: new optimizer state and counters, so capture again."""
-        self.graphs.clear()
+        self.graph = None
         self.eager_blocks = 0
         self.step.fill_(self.learner.num_steps)
 
@@ -85,9 +86,8 @@ class WholeStep:
         if not (self.capture and full):
             self._block(k)
             return
-        graph = self.graphs.get(k)
-        if graph is not None:
-            graph.replay()
+        if self.graph is not None:
+            self.graph.replay()
             return
         side = torch.cuda.Stream()
         side.wait_stream(torch.cuda.current_stream())
@@ -100,10 +100,10 @@ class WholeStep:
                 # thread_local: the actor's own thread may copy an insert meanwhile.
                 with torch.cuda.graph(graph, capture_error_mode="thread_local"):
                     self._block(k)
-                self.graphs[k] = graph
+                self.graph = graph
         torch.cuda.current_stream().wait_stream(side)
-        if graph is not None:
-            graph.replay()  # a capture records the block without running it
+        if self.graph is not None:
+            self.graph.replay()  # a capture records the block without running it
 
     def take_sums(self) -> torch.Tensor:
         """The summed statistics since the last call, on the host; the device's are zeroed."""

@@ -145,6 +145,6 @@ def test_on_cuda_the_captured_graph_takes_the_host_paths_steps() -> None:
         new = _data(20, seed=steps)
         whole.add(new)
         host.add(new)
-    assert whole.whole.graphs and whole.num_steps == int(whole.whole.step) == 11
+    assert whole.whole.graph is not None and whole.num_steps == int(whole.whole.step) == 11
     for x, y in zip(_params(whole), _params(host), strict=True):
         torch.testing.assert_close(x, y, rtol=1e-4, atol=1e-5)
