@@ -52,21 +52,20 @@ def make_adam(params: Any, lr: float, device: torch.device | None = None) -> tor
     which the fused kernel reads there, so a rate may round differently in its last bit.
     """
     params = list(params)
-    if device is None:
-        rate: float | torch.Tensor = lr
-        kinds: list[dict[str, Any]] = [{"fused": True}, {}]
-    else:
+    rate: float | torch.Tensor = lr
+    first: dict[str, Any] = {"fused": True}
+    fallback: dict[str, Any] = {}
+    if device is not None:
         dtype = torch.float32 if device.type == "cuda" else torch.float64
         rate = torch.tensor(lr, dtype=dtype, device=device)
         capturable = {"capturable": True} if device.type == "cuda" else {}
-        kinds = [{"fused": True, **capturable}, {"foreach": False, **capturable}]
-    for i, kind in enumerate(kinds):
-        try:
-            return torch.optim.Adam(params, lr=rate, **kind)
-        except (RuntimeError, TypeError):  # older torch / unsupported device
-            if i == len(kinds) - 1:
-                raise
-    raise AssertionError("unreachable")
+        first = {"fused": True, **capturable}
+        # Without the fused kernel a tensor rate needs the single-tensor one (or capturable).
+        fallback = {"foreach": False, **capturable}
+    try:
+        return torch.optim.Adam(params, lr=rate, **first)
+    except (RuntimeError, TypeError):  # older torch / unsupported device
+        return torch.optim.Adam(params, lr=rate, **fallback)
 
 
 def _numpy_state(net: nn.Module) -> dict[str, np.ndarray]:
@@ -310,7 +309,7 @@ class D4PGLearner:
         if not self.config.bf16:
             return contextlib.nullcontext()
         # Autocast's cache of cast weights must not outlive a CUDA graph's capture.
-        cache = getattr(self, "whole", None) is None
+        cache = self.whole is None
         return torch.autocast(self.device.type, dtype=torch.bfloat16, cache_enabled=cache)
 
     def _clip(self, net: nn.Module) -> torch.Tensor:
