@@ -22,6 +22,9 @@ NOT_THE_POLICY = frozenset({SERVER_RESTARTED, ROBOT_ERROR})
 """Ends that say nothing about the policy or its start."""
 CATEGORIES = ("success", "collision", "timeout", "other")
 """What a report counts: every status falls in exactly one."""
+WINDOW_KEYS = ("window_position_error", "window_rotation_error")
+"""A task with a new command every few seconds (the deploy reach) ends only by time: its
+measure is what it puts in ``info`` at each window's end (m, rad)."""
 
 
 def final_status(info: Mapping[str, Any], truncated: bool) -> str:

@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from robogym_ray.envs.outcomes import final_status
+from robogym_ray.envs.outcomes import WINDOW_KEYS, final_status
 from robogym_ray.learner.behaviour import to_env_action
 
 Policy = Callable[[np.ndarray], np.ndarray]
@@ -41,8 +41,6 @@ class GreedyEpisode:
     errors at the end of each command window, the task's own measure."""
 
 
-WINDOW_KEYS = ("window_position_error", "window_rotation_error")
-"""What a task with command windows reports at each window's end (m, rad)."""
 ERROR_KEYS = {"position_error": ("dist_coord", "distance"), "rotation_error": ("dist_rot",)}
 """Where tasks put their final errors in ``info``: the arm tasks of robo-gym 2.1.0 and the UR
 positioning task name the distance differently."""

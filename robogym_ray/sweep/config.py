@@ -45,8 +45,9 @@ class SweepConfig:
     """none: every trial runs to its end; asha: ASHA stops the trials whose --metric trails
     the others' at the same --time-attr."""
     metric: str = "eval/success_rate"
-    """The result key trials are compared on (ASHA, the best trial): eval/success_rate,
-    eval/return, ... (a trial reports one result per evaluator window)."""
+    """The result key trials are compared on (ASHA, the best trial, the figure):
+    eval/success_rate, eval/return, ...; the deploy reach's eval/window_position_error with
+    --mode min (a trial reports one result per evaluator window)."""
     mode: str = "max"
     """max or min: which way --metric is better."""
     time_attr: str = "env_steps"

@@ -1,8 +1,8 @@
-"""``robogym-ray sweep summary NAME``: one table of the sweep's trials and one figure (success
-against wall time, a line per trial) written beside it, read from the sweep's folder alone
-(Tune's ``result.json`` per trial, each run's ``summary.json``): no Ray, any machine that
-reaches the storage. The figure needs matplotlib (the experiments extra); without it the table
-is still written, and the line says so."""
+"""``robogym-ray sweep summary NAME``: one table of the sweep's trials and one figure (the
+sweep's metric against wall time, a line per trial) written beside it, read from the sweep's
+folder alone (Tune's ``result.json`` per trial, each run's ``summary.json``): no Ray, any
+machine that reaches the storage. The figure needs matplotlib (the experiments extra); without
+it the table is still written, and the line says so."""
 
 from __future__ import annotations
 
@@ -16,7 +16,7 @@ from robogym_ray.storage import RunStorage, resolve_root
 from robogym_ray.sweep.plan import RECORD, STATE
 
 TABLE = "summary.md"
-FIGURE = "success.png"
+FIGURE = "curves.png"
 MARKS = (0.9, 0.95)
 
 
@@ -110,8 +110,9 @@ def best_trial(trials: Sequence[Trial], metric: str, mode: str) -> Trial | None:
     return max(scored, key=lambda t: sign * (t.final(metric) or 0.0))
 
 
-def figure(trials: Sequence[Trial], path: str) -> bool:
-    """Success against wall time, a line per trial; False when matplotlib is missing."""
+def figure(trials: Sequence[Trial], path: str, metric: str) -> bool:
+    """``metric`` (success rate by default; the deploy reach's window-end error) against wall
+    time, a line per trial; False when matplotlib is missing."""
     try:
         import matplotlib
 
@@ -121,14 +122,15 @@ def figure(trials: Sequence[Trial], path: str) -> bool:
         return False
     fig, ax = plt.subplots(figsize=(7, 4))
     for t in trials:
-        points = [(r["wall_s"] / 60, r["eval/success_rate"]) for r in t.results
-                  if "eval/success_rate" in r and "wall_s" in r]  # fmt: skip
+        points = [(r["wall_s"] / 60, r[metric]) for r in t.results
+                  if metric in r and "wall_s" in r]  # fmt: skip
         if points:
             label = ", ".join(f"{k}={v}" for k, v in t.settings.items()) or t.name
             ax.plot(*zip(*points, strict=True), label=label)
     ax.set_xlabel("wall time (min)")
-    ax.set_ylabel("evaluator success rate (last 100 episodes)")
-    ax.set_ylim(-0.02, 1.02)
+    ax.set_ylabel(f"{metric} (evaluator, last 100 episodes)")
+    if metric.endswith("_rate"):
+        ax.set_ylim(-0.02, 1.02)
     ax.legend(fontsize="small")
     fig.tight_layout()
     fig.savefig(path, dpi=120)
@@ -148,7 +150,7 @@ def summarize(name: str, storage: str | None) -> str:
     text = table(trials, metric, mode)
     folder.write_bytes(TABLE, (text + "\n").encode(), "sweep table")
     staged = folder.staging("")
-    drawn = figure(trials, str(staged / FIGURE))
+    drawn = figure(trials, str(staged / FIGURE), metric)
     if drawn:
         folder.publish(staged / FIGURE, FIGURE, "sweep figure")
     lines = [text, "", f"table:  {folder.location(TABLE)}"]

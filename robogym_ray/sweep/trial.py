@@ -34,6 +34,7 @@ from typing import Any
 import ray
 from ray import tune
 
+from robogym_ray.envs.outcomes import WINDOW_KEYS
 from robogym_ray.storage import RunStorage
 from robogym_ray.training.command import SECTIONS, TrainSetup, setup_of
 from robogym_ray.training.program import learner_gpus
@@ -170,6 +171,8 @@ class TrainingTrial(tune.Trainable):
             "eval/return": window["return"],
             "eval/snapshot_success_rate": window["snapshot_success_rate"],
             "eval/episodes": int(window["eval_episodes"]),
+            # a task with command windows: its measure (m, rad), for --metric and the figure
+            **{f"eval/{key}": window[key] for key in WINDOW_KEYS if key in window},
             "throughput/env_steps_per_s": round(window["env_steps_per_s"], 2),
             "throughput/learner_steps_per_s": round(window["learner_steps_per_s"], 2),
             "run": RunStorage(self.runs).child(self.run_name or "").location(),
@@ -192,7 +195,7 @@ class TrainingTrial(tune.Trainable):
             "ended_by": summary.get("ended_by", ""),
             "checkpoint": summary.get("checkpoint") or "",
         }
-        for key in ("eval/success_rate", "eval/return"):
+        for key in ("eval/success_rate", "eval/return", *(f"eval/{k}" for k in WINDOW_KEYS)):
             if key in summary:
                 metrics[key] = summary[key]
         self.last = metrics

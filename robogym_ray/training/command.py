@@ -20,6 +20,7 @@ from robogym_ray.config import (
     quote,
     read_json,
 )
+from robogym_ray.envs.outcomes import WINDOW_KEYS
 from robogym_ray.errors import ConfigError
 from robogym_ray.learner.config import D4PGConfig
 from robogym_ray.robots.emulation import EmulationConfig
@@ -226,7 +227,10 @@ def summary_text(summary: dict[str, Any]) -> str:
     root = run_root(summary)
     whole = ending.whole_run_line(summary)  # a run in parts (--resume): all of them
     lines = [ending.first_line(summary), *([whole] if whole else [])]
-    if "train/success_rate" in summary:
+    # A task with command windows ends only by time: success rates say nothing of it (100 %
+    # timeout), its window-end errors (the evaluator's) are its measure.
+    windows = f"eval/{WINDOW_KEYS[0]}" in summary
+    if "train/success_rate" in summary and not windows:
         # Over the last 100 episodes that were not revisits (RunStats), fewer in a short run.
         counted = min(100, summary["episodes"] - summary.get("revisited_episodes", 0))
         lines.append(f"  training episodes (last {counted}): {_rates(summary, 'train')}")
@@ -234,7 +238,13 @@ def summary_text(summary: dict[str, Any]) -> str:
         # The evaluator's rates are over its last 100 episodes (Evaluator's window).
         total = int(summary.get("eval/episodes", 0))
         last = f"last {min(100, total)} of {total}"
-        lines.append(f"  greedy evaluation ({last} episodes): {_rates(summary, 'eval')}")
+        measure = (
+            f"window-end error median {summary[f'eval/{WINDOW_KEYS[0]}']:.4f} m, "
+            f"{summary[f'eval/{WINDOW_KEYS[1]}']:.4f} rad"
+            if windows
+            else _rates(summary, "eval")
+        )
+        lines.append(f"  greedy evaluation ({last} episodes): {measure}")
     restarts = sum(summary["restarts"].values())
     node = summary.get("storage", {}).get("node", "")
     lines += [

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from robogym_ray.envs.outcomes import rates
+from robogym_ray.envs.outcomes import WINDOW_KEYS, rates
 from robogym_ray.supervision.restart_policy import FaultCause
 
 if TYPE_CHECKING:  # the rollout worker imports torch; these counters need none of it
@@ -121,7 +121,10 @@ def eval_entry(stats: RunStats, wall_s: float) -> dict[str, float]:
         "return": round(stats.eval["eval_return"], 2),
         "success_rate": stats.eval["eval_success_rate"],
         "snapshot_success_rate": stats.eval["eval_snapshot_success_rate"],
-    }
+        # A task with command windows: its own measure (the evaluator's medians), m and rad.
+        **{key: round(stats.eval[f"eval_{key}"], 5) for key in WINDOW_KEYS
+           if f"eval_{key}" in stats.eval},
+    }  # fmt: skip
 
 
 def scalars(

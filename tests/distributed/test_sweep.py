@@ -72,7 +72,7 @@ def test_four_trials_two_at_a_time_and_asha_stops_the_worse(tmp_path: Path) -> N
         assert run["stopped_by"] == "scheduler" and Path(run["checkpoint"]).is_file()
     table = (sweep / "summary.md").read_text()
     assert len(table.splitlines()) == 2 + 4 and "stopped (scheduler)" in table
-    assert (sweep / "success.png").stat().st_size > 0
+    assert (sweep / "curves.png").stat().st_size > 0
 
 
 def test_a_sweep_goes_on_from_its_checkpoints_after_its_driver_is_killed(

@@ -209,3 +209,38 @@ def test_rob_variant_on_a_robot_server_and_bad_kwargs() -> None:
         gym.make(SIM, isaac_quat_order="wzyx")
     with pytest.raises(ConfigError, match="resampling_time"):
         gym.make(SIM, resampling_time=0.001)
+
+
+def test_the_evaluator_and_train_summary_report_window_end_errors() -> None:
+    """The deploy reach ends only by time: the evaluator scores it by its window-end errors
+    (medians over its kept episodes, as ``evaluate`` does), and ``train``'s short summary shows
+    them instead of 100 % timeouts."""
+    from robogym_ray.experience.episodes import greedy_episode
+    from robogym_ray.experience.evaluator import Evaluator
+    from robogym_ray.experience.rollout import make_gym_env
+    from robogym_ray.learner.config import D4PGConfig
+    from robogym_ray.training.command import summary_text
+
+    d4pg = D4PGConfig(policy_hidden=(16, 16), critic_hidden=(16, 16))
+    evaluator = Evaluator(make_gym_env(SIM), d4pg, seed=1000)
+    try:
+        weights = {k: v.detach().numpy() for k, v in evaluator.actor.policy.state_dict().items()}
+        stats = evaluator.evaluate(weights, 1, episodes=1)
+        # the same episode again, through the one greedy-episode loop
+        windows = greedy_episode(evaluator.env, evaluator._act, 1000).window_errors or []
+    finally:
+        evaluator.close()
+    assert len(windows) == 3 and stats["eval_timeout_rate"] == 1.0
+    assert stats["eval_window_position_error"] == np.median([w[0] for w in windows])
+    assert stats["eval_window_rotation_error"] == np.median([w[1] for w in windows])
+    summary = {
+        "task": SIM, "ended": "completed", "wall_s": 60.0, "env_steps": 720, "episodes": 1,
+        "learner_steps": 100, "restarts": {}, "dropped_steps": 0, "robot_errors": 0,
+        "checkpoint": "runs/x/checkpoints/learner.pt", "logdir": "runs/x",
+        "train/success_rate": 0.0, "train/collision_rate": 0.0, "train/timeout_rate": 1.0,
+        **{f"eval/{k.removeprefix('eval_')}": v for k, v in stats.items()},
+    }  # fmt: skip
+    text = summary_text(summary)
+    position = stats["eval_window_position_error"]
+    assert f"window-end error median {position:.4f} m" in text
+    assert "timeout" not in text and "training episodes" not in text
