@@ -28,7 +28,7 @@ import numpy as np
 
 from robogym_ray.config import check_address, check_dir_path, quote
 from robogym_ray.envs import outcomes
-from robogym_ray.envs.outcomes import CATEGORIES, WINDOW_KEYS
+from robogym_ray.envs.outcomes import CATEGORIES
 from robogym_ray.envs.registration import server_spec_of, variant_id
 from robogym_ray.envs.render.video import EpisodeVideos
 from robogym_ray.errors import ConfigError
@@ -173,12 +173,11 @@ class EvaluationResult:
     def measures(self) -> dict[str, float]:
         """The task's own measures, medians over what it reports: the window-end errors of a
         task with command windows, else the final errors (none for tasks without either)."""
-        windows = [w for e in self.episodes for w in e.window_errors or []]
+        windows = outcomes.window_medians(w for e in self.episodes for w in e.window_errors or [])
         if windows:
-            found = {key: [w[i] for w in windows] for i, key in enumerate(WINDOW_KEYS)}
-        else:
-            found = {k: [getattr(e, k) for e in self.episodes if getattr(e, k) is not None]
-                     for k in ("position_error", "rotation_error")}  # fmt: skip
+            return {f"median_{k}": round(v, 5) for k, v in windows.items()}
+        found = {k: [getattr(e, k) for e in self.episodes if getattr(e, k) is not None]
+                 for k in ("position_error", "rotation_error")}  # fmt: skip
         return {f"median_{k}": round(float(np.median(v)), 5) for k, v in found.items() if v}
 
     def to_dict(self) -> dict[str, Any]:

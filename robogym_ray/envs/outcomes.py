@@ -4,8 +4,10 @@ a list of them into counts and rates (training scalars, the evaluator, ``evaluat
 from __future__ import annotations
 
 from collections import Counter
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
+
+import numpy as np
 
 SUCCESS = "success"
 COLLISION = "collision"
@@ -49,3 +51,12 @@ def rates(statuses: Iterable[str]) -> dict[str, float]:
     statuses = list(statuses)
     n = max(1, len(statuses))
     return {f"{c}_rate": v / n for c, v in counts(statuses).items()}
+
+
+def window_medians(windows: Iterable[Sequence[float]]) -> dict[str, float]:
+    """The medians of ``WINDOW_KEYS`` over (position, rotation) window-end errors; empty for
+    none (a task without windows)."""
+    errors = np.asarray(list(windows), dtype=np.float64).reshape(-1, len(WINDOW_KEYS))
+    if not len(errors):
+        return {}
+    return {key: float(np.median(errors[:, i])) for i, key in enumerate(WINDOW_KEYS)}

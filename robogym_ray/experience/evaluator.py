@@ -3,8 +3,8 @@
 It keeps the final status of the last 100 episodes and reports success / collision / timeout
 rates over them, plus returns. A task with command windows (the deploy reach, whose episodes end
 only by time) is measured by its window-end errors instead: their medians over the same
-episodes. Every ``video_every_s`` seconds it films the first episode of a
-call, when its env renders ``rgb_array`` frames, for TensorBoard's ``eval/video``.
+episodes. Every ``video_every_s`` seconds it films the first episode of a call, when its env
+renders ``rgb_array`` frames, for TensorBoard's ``eval/video``.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from robogym_ray.envs.outcomes import WINDOW_KEYS, rates
+from robogym_ray.envs.outcomes import rates, window_medians
 from robogym_ray.envs.render.video import gif_bytes
 from robogym_ray.experience.episodes import greedy_episode
 from robogym_ray.experience.rollout import EnvFactory, box_dims
@@ -80,6 +80,8 @@ class Evaluator:
                 self.windows.append(episode.window_errors)
             rets.append(episode.ret)
             call_statuses.append(episode.final_status)
+        # medians over every window of the kept episodes, as `evaluate` scores them
+        windows = window_medians(w for episode in self.windows for w in episode)
         out = {
             "eval_snapshot_success_rate": rates(call_statuses)["success_rate"],
             "eval_return": float(np.mean(rets)),
@@ -87,7 +89,7 @@ class Evaluator:
             "eval_episodes": float(self.episodes),
             "weights_version": float(version),
             **{f"eval_{k}": v for k, v in rates(self.statuses).items()},
-            **self._window_medians(),
+            **{f"eval_{k}": v for k, v in windows.items()},
         }
         if frames:
             stride = -(-len(frames) // MAX_VIDEO_FRAMES)
@@ -95,16 +97,6 @@ class Evaluator:
             out[VIDEO_KEY] = gif_bytes(frames[::stride] + frames[-1:], fps)
             self._next_video = time.monotonic() + self.video_every_s
         return out
-
-    def _window_medians(self) -> dict[str, float]:
-        """``eval_window_position_error`` / ``_rotation_error`` (m, rad): medians over every
-        window of the kept episodes, as ``robogym-ray evaluate`` scores them; none for tasks
-        without windows."""
-        errors = [w for episode in self.windows for w in episode]
-        if not errors:
-            return {}
-        return {f"eval_{key}": float(np.median([w[i] for w in errors]))
-                for i, key in enumerate(WINDOW_KEYS)}  # fmt: skip
 
     def _act(self, obs: np.ndarray) -> np.ndarray:
         return self.actor.act(obs, explore=False)
