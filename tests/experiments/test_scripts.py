@@ -47,6 +47,7 @@ def load_config(name: str):
         "navigation-sectors-average",
         "panda-positioning",
         "isaac-reach-ur10",
+        "isaac-deploy-reach-ur10e-fine",
     ],
 )
 def test_configs_load_and_flags_override_them(name: str) -> None:
