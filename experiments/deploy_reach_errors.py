@@ -89,7 +89,8 @@ def plot(errors: dict[str, str], out: str | Path) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, 2, figsize=(10, 3.8))
+    rows = -(-len(errors) // 2)  # of the legend, two policies a row
+    fig, axes = plt.subplots(1, 2, figsize=(10, 3.8 + 0.3 * rows))
     for label, path in errors.items():
         record = json.loads(Path(path).read_text())
         arr = np.asarray([w for ep in record["per_episode"] for w in ep]).reshape(-1, 2)
@@ -101,9 +102,10 @@ def plot(errors: dict[str, str], out: str | Path) -> Path:
         ax.set_xlabel(unit)
         ax.set_ylabel("share of command windows")
         ax.grid(alpha=0.3)
-    axes[0].legend(loc="lower right")
+    # Below the axes: with more than a few policies a legend inside covers the curves.
+    fig.legend(*axes[0].get_legend_handles_labels(), loc="lower center", ncol=2, frameon=False)
     fig.suptitle("IsaacDeployReachUR10e: wrist_3_link against each 4-s pose command")
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0.3 * rows / (3.8 + 0.3 * rows), 1, 1))
     out = Path(out)
     fig.savefig(out, dpi=120)
     plt.close(fig)

@@ -50,3 +50,18 @@ def test_the_script_scores_each_window(who: str, tmp_path: Path, capsys) -> None
         sorted(e[0] for e in errors)[0] / 2 + sorted(e[0] for e in errors)[1] / 2, abs=1e-4
     )
     assert all(0 < p < 3 and 0 <= r <= 3.1416 for p, r in errors)
+
+
+def test_the_figure_makes_room_below_its_axes_for_each_row_of_the_legend(tmp_path: Path) -> None:
+    pytest.importorskip("matplotlib")
+    from matplotlib.image import imread
+
+    committed = Path(__file__).parents[2] / "docs/results/isaac-deploy-reach-ur10e-servo"
+    files = sorted(committed.glob("errors-*.json"))[:6]
+    plot = script("deploy_reach_errors").plot
+    heights = []
+    for n in (2, 6):
+        out = plot({f.stem: str(f) for f in files[:n]}, tmp_path / f"{n}.png")
+        heights.append(imread(out).shape[0])
+    # One legend row per two policies, 0.3 in each at 120 dpi.
+    assert heights[1] - heights[0] == 2 * 36
