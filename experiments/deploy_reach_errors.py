@@ -89,8 +89,8 @@ def plot(errors: dict[str, str], out: str | Path) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    rows = -(-len(errors) // 2)  # of the legend, two policies a row
-    fig, axes = plt.subplots(1, 2, figsize=(10, 3.8 + 0.3 * rows))
+    legend = 0.3 * -(-len(errors) // 2)  # inches: a row of two policies each 0.3
+    fig, axes = plt.subplots(1, 2, figsize=(10, 3.8 + legend))
     for label, path in errors.items():
         record = json.loads(Path(path).read_text())
         arr = np.asarray([w for ep in record["per_episode"] for w in ep]).reshape(-1, 2)
@@ -105,7 +105,7 @@ def plot(errors: dict[str, str], out: str | Path) -> Path:
     # Below the axes: with more than a few policies a legend inside covers the curves.
     fig.legend(*axes[0].get_legend_handles_labels(), loc="lower center", ncol=2, frameon=False)
     fig.suptitle("IsaacDeployReachUR10e: wrist_3_link against each 4-s pose command")
-    fig.tight_layout(rect=(0, 0.3 * rows / (3.8 + 0.3 * rows), 1, 1))
+    fig.tight_layout(rect=(0, legend / (3.8 + legend), 1, 1))
     out = Path(out)
     fig.savefig(out, dpi=120)
     plt.close(fig)
