@@ -1,4 +1,4 @@
-"""The learner's capacity: updates/s and samples/s by batch, threads and device (issue 42).
+"""The learner's capacity: updates/s and samples/s by batch, threads and device.
 
 Navigation's shapes and recipe networks: 20 observations, 2 actions, (400, 300) with LayerNorm,
 51 atoms, prioritized replay pre-filled with 100,000 random transitions. Three modes:
@@ -14,7 +14,7 @@ Navigation's shapes and recipe networks: 20 observations, 2 actions, (400, 300) 
         share of the cores), to measure what a thread the cores cannot hold costs;
     python benchmarks/learner_capacity.py paths --paths compiled whole --batches 256 1792 \
             --device cuda --rounds 3 --call-steps 4
-        the learner's step paths side by side in one process: today's host-stepped step eager
+        the learner's step paths side by side in one process: the host-stepped step eager
         ("eager") or with compiled losses ("compiled", torch.compile reduce-overhead), and the
         whole step in one CUDA graph ("whole", whole_step on); each built and warmed once,
         then timed in turn, ``--rounds`` windows each (ratios from one machine, one minute);

@@ -1,5 +1,5 @@
 """Errors that guide: an unknown task, robot, env id or config key is named, with the closest
-known one (issue 41, item 5)."""
+known one."""
 
 from __future__ import annotations
 

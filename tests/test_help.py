@@ -1,5 +1,5 @@
 """``--help`` a new user reads: sections, each default once, an accurate command list, and the
-README's commands still parse as written (issue 41, item 4)."""
+README's commands still parse as written."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """The progress bar's time left is the earlier of the step total's and ``--max-wall-s``'s
-(issue 53: a run about to stop at its wall limit showed 47 minutes left)."""
+(until 2026-11-27 a run about to stop at its wall limit showed 47 minutes left)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""How a run ended and what it adds up to over its parts (issue 53): ``summary.json``'s
+"""How a run ended and what it adds up to over its parts: ``summary.json``'s
 ``ended_by``, ``resumed``, ``this_part`` and ``whole_run``, and the short summary's lines; older
 summaries still read as before."""
 

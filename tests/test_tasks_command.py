@@ -1,6 +1,6 @@
 """``robogym-ray tasks``: every training task with its env id and a line on what it is, and every
-registered env id; ``train --help`` points to it (issue 53: ``--help`` pointed into a source
-file)."""
+registered env id; ``train --help`` points to it (until 2026-11-27 ``--help`` pointed into a
+source file)."""
 
 from __future__ import annotations
 

@@ -1,9 +1,10 @@
 """A default ``robogym-ray manager`` (local Ray, 2 CPUs) under robo-gym's own server-manager client
-asking for 24 robot servers and killing none (issue 20, item 3's acceptance).
+asking for 24 robot servers and killing none.
 
-Before: each server reserved 0.25 Ray CPU, so the 8th start blocked ~60 s and failed, robo-gym's
-client retried it 10 times, and concurrent starts took every gRPC thread so VerifyConnection
-stopped answering. Now: every call is answered within 15 s and at least 16 servers are served.
+Before 2026-11-23: each server reserved 0.25 Ray CPU, so the 8th start blocked ~60 s and failed,
+robo-gym's client retried it 10 times, and concurrent starts took every gRPC thread so
+VerifyConnection stopped answering. Now: every call is answered within 15 s and at least 16
+servers are served.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The embedded Ray listens on loopback only (issue 20, item 9).
+"""The embedded Ray listens on loopback only.
 
 Each case starts its own Ray in a child process (the suite's shared Ray is already up in this
 one), runs one actor so that a core worker listens too, and lists every listening TCP socket of

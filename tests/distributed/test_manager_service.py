@@ -1,6 +1,6 @@
 """The ServerManager service over in-process robot servers, called through real gRPC (no Ray).
 
-What robo-gym's client meets at the manager's edge (issue 20, items 3 and 5): bad launch
+What robo-gym's client meets at the manager's edge: bad launch
 commands and options refused before anything starts, with one short line; kill replies its
 client can live with; a full or busy manager answering at once; idle servers reclaimed.
 """

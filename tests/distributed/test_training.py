@@ -368,7 +368,7 @@ def test_a_run_continues_from_another_runs_checkpoint_and_replay(tmp_path: Path)
     with pytest.raises(ConfigError, match="init-from"):
         run_training(TrainConfig(**common, run_name="third", init_from=str(tmp_path / "x.pt")))
     # The first run, resumed in its own folder until its wall limit: the summary says why each
-    # part ended, and counts this part and the whole run (issue 53).
+    # part ended, and counts this part and the whole run.
     assert first["ended_by"] == "total_steps" and not first["resumed"]
     again = run_training(
         TrainConfig(**common, run_name="first", resume=True, total_steps=10**9, max_wall_s=3.0),

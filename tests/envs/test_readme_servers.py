@@ -1,5 +1,5 @@
 """The README's robot servers answer the README's envs with no extra option; a server in another
-mode is refused with the ``--option`` it needs (issue 41, item 3)."""
+mode is refused with the ``--option`` it needs."""
 
 from __future__ import annotations
 

@@ -1,6 +1,6 @@
 """Values a client sends are checked against physically sensible ranges before anything changes.
 
-Issue 20: a MiR100 target yaw of 1e5 was stored and echoed, UR object positions of 3e38 were
+Until 2026-11-23 a MiR100 target yaw of 1e5 was stored and echoed, UR object positions of 3e38 were
 accepted, a ``triangle_wave`` of 1e-5 Hz precomputed ~670 MB, an ``action_cycle_rate`` of
 0.001 Hz made each SendAction simulate 1,000 s. Every test goes through real gRPC on 127.0.0.1.
 """

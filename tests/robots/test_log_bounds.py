@@ -1,7 +1,7 @@
 """What a client sends is quoted in bounded form in replies and logs, and repeats are rate-limited.
 
-Issue 20: unknown UR ``state_dict`` keys were logged in full (60 MB sent, 60 MB of log in 1.7 s).
-The servers run on 127.0.0.1 with real gRPC; the log is what ``caplog`` captures from them.
+Until 2026-11-23 unknown UR ``state_dict`` keys were logged in full (60 MB sent, 60 MB of log in
+1.7 s). The servers run on 127.0.0.1 with real gRPC; the log is what ``caplog`` captures from them.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Issue 20, item 11: a UR10e near the ground, ours against the real arm's collision meshes.
+"""A UR10e near the ground (reported 2026-11-23), ours against the real arm's collision meshes.
 
 The report: the joints ``[-2.14, -0.13, 0.63, -1.13, 1.63]``, divided by the joint limits (the
 observation's normalisation) and sent as the action, collide in EmptyEnvironment but run to

@@ -119,8 +119,8 @@ UR_MODELS: dict[str, URModel] = {
 }  # fmt: skip
 """All seven models by name (DH of spec e.2, limits, Vabs, workspace radii, sizes). The UR10e's
 DH is Universal Robots' published one (as in ur_description's ``default_kinematics.yaml`` and
-Isaac Lab's UR10e, issue 43); robo-gym's fork rounds it to the millimetre (spec e.2: 0.181,
--0.613, -0.571, 0.174, 0.120, 0.117), at most 0.7 mm from these."""
+Isaac Lab's UR10e, which IsaacDeployReachUR10e uses); robo-gym's fork rounds it to the
+millimetre (spec e.2: 0.181, -0.613, -0.571, 0.174, 0.120, 0.117), at most 0.7 mm from these."""
 
 
 # -- kinematics -------------------------------------------------------------------------------
