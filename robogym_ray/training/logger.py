@@ -20,11 +20,17 @@ from robogym_ray.storage import RunStorage
 
 
 def eta_s(
-    done: int, total: int, elapsed_s: float, rate: float | None, max_wall_s: float | None = None
+    done: int,
+    total: int | None,
+    elapsed_s: float,
+    rate: float | None,
+    max_wall_s: float | None = None,
 ) -> float | None:
-    """Seconds until the run ends: at ``rate`` steps/s the step total's time, or the wall limit's
-    (``max_wall_s``), whichever comes first; None while neither is known."""
-    by_steps = (total - done) / rate if rate else None
+    """Seconds until the run ends: at ``rate`` steps/s the step total's time (none without a
+    total: a run given only --max-wall-s), or the wall limit's (``max_wall_s``), whichever comes
+    first; None while neither is known. Never negative: steps in flight when the total is
+    reached land past it."""
+    by_steps = max(0, total - done) / rate if rate and total is not None else None
     if max_wall_s is None:
         return by_steps
     by_wall = max(0.0, max_wall_s - elapsed_s)
@@ -33,11 +39,13 @@ def eta_s(
 
 class ProgressBar(tqdm):
     """tqdm's bar whose time left is ``eta_s``'s: a run about to reach --max-wall-s says so,
-    not the hour its step total would take."""
+    not the hour its step total would take. Steps past the total (those in flight when it was
+    reached) keep the total shown and the bar full; tqdm's own would show ``3016/?`` and a
+    negative time left."""
 
     def __init__(self, *args: Any, max_wall_s: float | None = None, **kwargs: Any) -> None:
         self.max_wall_s = max_wall_s
-        bar = "{l_bar}{bar}| {n_fmt}/{total_fmt} [{elapsed}<{left}, {rate_fmt}{postfix}]"
+        bar = "{l_bar}{bar}| {n_fmt}/{goal} [{elapsed}<{left}, {rate_fmt}{postfix}]"
         super().__init__(*args, bar_format=bar, **kwargs)
 
     @property
@@ -47,8 +55,14 @@ class ProgressBar(tqdm):
         rate = d.get("rate")
         if rate is None and elapsed:  # as tqdm's own format_meter falls back
             rate = (d["n"] - (d.get("initial") or 0)) / elapsed
-        left = eta_s(d["n"], d["total"] or 0, elapsed, rate, self.max_wall_s)
-        return {**d, "left": "?" if left is None else self.format_interval(left)}
+        total = d["total"]
+        left = eta_s(d["n"], total, elapsed, rate, self.max_wall_s)
+        return {
+            **d,
+            "total": None if total is None else max(total, d["n"]),
+            "goal": "?" if total is None else str(total),
+            "left": "?" if left is None else self.format_interval(left),
+        }
 
 
 class RunLogger:
@@ -62,7 +76,7 @@ class RunLogger:
     def __init__(
         self,
         run_dir: Path,
-        total: int,
+        total: int | None,
         progress: bool = True,
         stop: threading.Event | None = None,
         storage: RunStorage | None = None,
@@ -70,6 +84,7 @@ class RunLogger:
     ) -> None:
         """``storage``: an object store the events are uploaded to from ``run_dir`` (a local
         staging folder) at every ``write`` and at ``close``; None: ``run_dir`` is their home.
+        ``total``: the run's step total (None: no step cap, a run given only a wall limit).
         ``max_wall_s``: the run's wall limit, which the progress bar's time left respects."""
         self.run_dir = run_dir
         self.storage = storage
