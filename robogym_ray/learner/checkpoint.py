@@ -41,6 +41,7 @@ RUN_CHECKPOINT = f"checkpoints/{CHECKPOINT_NAME}"
 BEST_POLICY_NAME = "policy-best.pt"
 """The policy snapshot selection keeps (``--select-episodes``)."""
 REPLAY_SUFFIX = ".replay.npz"
+"""Appended to a checkpoint's path for the file holding its replay buffer."""
 NETS = ("policy", "critic", "target_policy", "target_critic", "policy_average")
 _RNG_KEY = "rng_state"  # the replay's numpy RNG state, stored as JSON text (no pickle)
 

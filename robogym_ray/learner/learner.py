@@ -33,6 +33,7 @@ from robogym_ray.learner.distributional import (
 )
 from robogym_ray.learner.networks import DistributionalCritic, Policy
 from robogym_ray.learner.replay import Backend, PrioritizedReplay
+from robogym_ray.learner.schedules import importance_beta, lr_scale
 from robogym_ray.learner.whole_step import WholeStep
 
 
@@ -72,19 +73,6 @@ def _numpy_state(net: nn.Module) -> dict[str, np.ndarray]:
     return {k: v.detach().cpu().numpy().copy() for k, v in net.state_dict().items()}
 
 
-def linear_ramp(step: Any, start: int, length: int, begin: float, end: float) -> Any:
-    """``begin`` until ``start``, then linearly to ``end`` over ``length`` steps, then ``end``;
-    ``step`` a number, or a tensor (the whole step's counter: the answer stays on its device)."""
-    if isinstance(step, torch.Tensor):
-        frac = ((step - start).clamp(min=0) / max(1, length)).clamp(max=1.0)
-    else:
-        frac = min(1.0, max(0, step - start) / max(1, length))
-    return begin + frac * (end - begin)
-
-
-"""Appended to a checkpoint's path for the file holding its replay buffer."""
-
-
 class D4PGLearner:
     """Single-learner D4PG (Barth-Maron et al. 2018) with Ape-X style prioritized replay."""
 
@@ -109,16 +97,16 @@ class D4PGLearner:
         self.policy_average: Policy | None = (
             copy.deepcopy(self.policy).requires_grad_(False) if c.policy_average_tau > 0 else None
         )
-        whole = c.whole_step == "on" or (
+        whole_step = c.whole_step == "on" or (
             c.whole_step == "auto" and self.device.type == "cuda" and not c.compile
         )
-        lr_device = self.device if whole else None
+        lr_device = self.device if whole_step else None
         self.policy_opt = make_adam(self.policy.parameters(), c.policy_lr, lr_device)
         self.critic_opt = make_adam(self.critic.parameters(), c.critic_lr, lr_device)
         self.support = make_support(c.v_min, c.v_max, c.num_atoms, self.device)
         alpha = c.priority_exponent if c.prioritized else 0.0  # alpha 0 == uniform sampling
         on_device = (
-            whole
+            whole_step
             or c.replay_device == "learner"
             or (c.replay_device == "auto" and self.device.type != "cpu")
         )
@@ -127,8 +115,9 @@ class D4PGLearner:
             backend=Backend.torch_on(self.device) if on_device else None,
         )  # fmt: skip
         self.num_steps = 0
-        self.whole: WholeStep | None = WholeStep(self) if whole else None
-        """The device-side step (``whole_step``), or None: the host-stepped loop below."""
+        self.device_loop: WholeStep | None = WholeStep(self) if whole_step else None
+        """The device-stepped loop (``whole_step``: no host value read), or None: the
+        host-stepped loop of :meth:`run`."""
         self._critic_loss_fn, self._policy_loss_fn = self._critic_loss, self._policy_loss
         if c.compile:
             # The losses (forward and backward) are compiled; the fused optimizer steps and the
@@ -144,29 +133,6 @@ class D4PGLearner:
     def can_step(self) -> bool:
         return len(self.replay) >= max(self.config.min_replay_size, self.config.batch_size)
 
-    @property
-    def beta(self) -> float:
-        return self.beta_at(self.num_steps)
-
-    def beta_at(self, step: Any) -> Any:
-        """The importance exponent at learner step ``step`` (a number or a device tensor)."""
-        c = self.config
-        return linear_ramp(step, 0, c.importance_beta_steps, c.importance_beta_start, 1)
-
-    @property
-    def lr_scale(self) -> float:
-        """Factor on the base learning rates at the current step (the linear late decay)."""
-        return self.lr_scale_at(self.num_steps)
-
-    def lr_scale_at(self, step: Any) -> Any:
-        c = self.config
-        if c.lr_decay_steps <= 0:
-            return 1.0
-        return linear_ramp(step, c.lr_decay_start, c.lr_decay_steps, 1, c.lr_final_scale)
-
-    def _apply_lr(self) -> float:
-        return self.set_lr(self.num_steps)
-
     def set_lr(self, step: Any) -> Any:
         """Both optimizers' rates for learner step ``step``; returns the scale.
 
@@ -174,7 +140,7 @@ class D4PGLearner:
         saved with, which must not override this config's (another schedule, or none). A tensor
         rate (the whole step's) is written in place, from a device value when ``step`` is one.
         """
-        scale = self.lr_scale_at(step)
+        scale = lr_scale(self.config, step)
         for opt, base in (
             (self.policy_opt, self.config.policy_lr),
             (self.critic_opt, self.config.critic_lr),
@@ -220,20 +186,20 @@ class D4PGLearner:
         c = self.config
         if steps <= 0:
             return {}
-        if self.whole is not None:
-            return self._metrics(*self.whole.run(steps), steps)
+        if self.device_loop is not None:
+            return self._metrics(*self.device_loop.run(steps), steps)
         sums, beta_sum, lr_sum, done = None, 0.0, 0.0, 0
         while done < steps:
             k = min(c.sgd_steps_per_sample, steps - done)
-            beta = self.beta
+            beta = importance_beta(c, self.num_steps)
             batch, idx, weights = self.replay.sample(k * c.batch_size, beta)
             block = self._to_tensors(batch)
             w = torch.as_tensor(weights, device=self.device)
             for j in range(k):
                 part = slice(j, None, k)
-                lr_sum += self._apply_lr()
+                lr_sum += self.set_lr(self.num_steps)
                 b = {key: v[part] for key, v in block.items()}
-                stats, per_sample = self._update(b, w[part])
+                stats, per_sample = self.gradient_step(b, w[part])
                 if c.prioritized:
                     # A host replay takes NumPy (a CPU learner copies nothing); a device
                     # replay keeps the priorities where they were computed.
@@ -242,7 +208,7 @@ class D4PGLearner:
                         idx[part], per_sample.cpu().numpy() if on_host else per_sample
                     )
                 self.num_steps += 1
-                self._update_targets()
+                self.update_targets()
                 sums = stats if sums is None else sums + stats
                 beta_sum += beta
             done += k
@@ -251,13 +217,11 @@ class D4PGLearner:
     def _metrics(
         self, mean: np.ndarray, beta_sum: float, lr_sum: float, steps: int
     ) -> dict[str, float]:
+        """``run``'s metrics from the means of :attr:`STATS` and the schedules' sums."""
+        means = {name: float(x) for name, x in zip(self.STATS, mean, strict=True)}
         return {
-            "critic_loss": float(mean[0]),
-            "policy_loss": float(mean[1]),
-            "mean_q": -float(mean[1]),
-            "mean_priority": float(mean[4]),
-            "critic_grad_norm": float(mean[2]),
-            "policy_grad_norm": float(mean[3]),
+            **means,
+            "mean_q": -means["policy_loss"],
             "beta": beta_sum / steps,
             "lr_scale": lr_sum / steps,
             "steps": float(self.num_steps),
@@ -279,10 +243,17 @@ class D4PGLearner:
             logits = self.critic(obs, self.policy(obs)).float()
         return -expected_value(logits, self.support).mean()
 
-    def _update(
+    STATS = ("critic_loss", "policy_loss", "critic_grad_norm", "policy_grad_norm", "mean_priority")
+    """The per-step statistics :meth:`gradient_step` stacks, in its order."""
+
+    def gradient_step(
         self, b: dict[str, torch.Tensor], w: torch.Tensor
     ) -> tuple[torch.Tensor, torch.Tensor]:
-        """One gradient step of each network; (stats on the device, per-sample losses)."""
+        """One gradient step of each network on batch ``b`` with importance weights ``w``.
+
+        Returns:
+            The :attr:`STATS` on the device, and the per-sample critic losses (new priorities).
+        """
         critic_loss, per_sample = self._critic_loss_fn(b, w)
         # Outputs of a CUDA-graph replay are overwritten by the next replay: what outlives this
         # step is copied out now (a no-op for the values on every other path).
@@ -309,7 +280,7 @@ class D4PGLearner:
         if not self.config.bf16:
             return contextlib.nullcontext()
         # Autocast's cache of cast weights must not outlive a CUDA graph's capture.
-        cache = self.whole is None
+        cache = self.device_loop is None
         return torch.autocast(self.device.type, dtype=torch.bfloat16, cache_enabled=cache)
 
     def _clip(self, net: nn.Module) -> torch.Tensor:
@@ -319,7 +290,7 @@ class D4PGLearner:
             )
         return torch.zeros((), device=self.device)
 
-    def _update_targets(self, due: torch.Tensor | None = None) -> None:
+    def update_targets(self, due: torch.Tensor | None = None) -> None:
         """Polyak or hard target updates after a step. ``due``: whether a hard copy is due, as
         a device bool (the whole step's; the copy becomes a ``where``), else decided here."""
         c = self.config
@@ -401,5 +372,5 @@ class D4PGLearner:
             torch.cuda.set_rng_state(state["cuda_rng"].cpu())
         if checkpoint.replay_path(path).exists():
             self.replay.load_state_dict(checkpoint.read_replay(checkpoint.replay_path(path)))
-        if self.whole is not None:
-            self.whole.forget()
+        if self.device_loop is not None:
+            self.device_loop.forget()

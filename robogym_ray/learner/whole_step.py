@@ -28,29 +28,51 @@ the next block captures it again. A block shorter than ``sgd_steps_per_sample`` 
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 
 import torch
 
+from robogym_ray.learner.schedules import importance_beta, lr_scale
+
 if TYPE_CHECKING:
-    from robogym_ray.learner.learner import D4PGLearner
+    from robogym_ray.learner.config import D4PGConfig
+    from robogym_ray.learner.replay import PrioritizedReplay
 
 WARMUP = 3
 """Eager blocks before a capture (PyTorch's CUDA-graph notes ask for a few on a side stream)."""
-METRICS = ("critic_loss", "policy_loss", "critic_grad_norm", "policy_grad_norm", "mean_priority")
-"""The per-step statistics ``D4PGLearner._update`` stacks, in its order."""
+
+
+class SteppedLearner(Protocol):
+    """What the whole step needs of a learner (``D4PGLearner`` is one): its settings, device,
+    replay and counter, and the three updates it runs inside a block."""
+
+    STATS: ClassVar[tuple[str, ...]]
+    """The names of the statistics ``gradient_step`` returns, in their order."""
+    config: D4PGConfig
+    device: torch.device
+    replay: PrioritizedReplay
+    num_steps: int
+
+    def set_lr(self, step: Any) -> Any: ...
+
+    def gradient_step(
+        self, b: dict[str, torch.Tensor], w: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor]: ...
+
+    def update_targets(self, due: torch.Tensor | None = None) -> None: ...
 
 
 class WholeStep:
     """Blocks of learner steps that read no host value; a full block captured once on CUDA."""
 
-    def __init__(self, learner: D4PGLearner) -> None:
+    def __init__(self, learner: SteppedLearner) -> None:
         self.learner = learner
         device = learner.device
-        self.capture = device.type == "cuda"
+        self.captures_graph = device.type == "cuda"
+        """Whether a full block is captured in a CUDA graph and replayed (else run eagerly)."""
         self.step = torch.zeros((), dtype=torch.float64, device=device)
         """The learner's step count as the device sees it (``learner.num_steps``)."""
-        self.sums = torch.zeros(len(METRICS), dtype=torch.float32, device=device)
+        self.sums = torch.zeros(len(learner.STATS), dtype=torch.float32, device=device)
         self.graph: torch.cuda.CUDAGraph | None = None
         """The captured full block (``sgd_steps_per_sample`` steps): the only one replayed."""
         self.eager_blocks = 0
@@ -71,10 +93,11 @@ class WholeStep:
         the summed importance exponent and learning-rate scale). The schedules' values are the
         host's copies of what the device computed from the same counter."""
         learner, done, beta_sum, lr_sum = self.learner, 0, 0.0, 0.0
+        c = learner.config
         while done < steps:
-            k = min(learner.config.sgd_steps_per_sample, steps - done)
-            beta_sum += k * learner.beta
-            lr_sum += sum(learner.lr_scale_at(learner.num_steps + j) for j in range(k))
+            k = min(c.sgd_steps_per_sample, steps - done)
+            beta_sum += k * importance_beta(c, learner.num_steps)
+            lr_sum += sum(lr_scale(c, learner.num_steps + j) for j in range(k))
             self.run_block(k)
             learner.num_steps += k
             done += k
@@ -83,7 +106,7 @@ class WholeStep:
     def run_block(self, k: int) -> None:
         """``k`` learner steps from one sampled block (``learner.num_steps`` is the caller's)."""
         full = k == self.learner.config.sgd_steps_per_sample
-        if not (self.capture and full):
+        if not (self.captures_graph and full):
             self._block(k)
             return
         if self.graph is not None:
@@ -113,18 +136,18 @@ class WholeStep:
 
     def _block(self, k: int) -> None:
         learner, c = self.learner, self.learner.config
-        beta = learner.beta_at(self.step)  # the block's first step's, as the host path's
+        beta = importance_beta(c, self.step)  # the block's first step's, as the host path's
         draws = self.draw(k * c.batch_size)
         batch, idx, weights = learner.replay.sample_drawn(draws, beta)
         for j in range(k):
             part = slice(j, None, k)
             learner.set_lr(self.step)
-            stats, per_sample = learner._update({key: v[part] for key, v in batch.items()},
-                                                weights[part])  # fmt: skip
+            b = {key: v[part] for key, v in batch.items()}
+            stats, per_sample = learner.gradient_step(b, weights[part])
             if c.prioritized:
                 learner.replay.update_priorities(idx[part], per_sample)
             self.step += 1
-            learner._update_targets(due=self._copy_due())
+            learner.update_targets(due=self._copy_due())
             self.sums += stats
 
     def _copy_due(self) -> Any:

@@ -19,8 +19,9 @@ from robogym_ray.errors import ConfigError
 from robogym_ray.learner import checkpoint
 from robogym_ray.learner.checkpoint import CHECKPOINT_NAME, replay_path
 from robogym_ray.learner.config import D4PGConfig
-from robogym_ray.learner.learner import linear_ramp, make_adam
+from robogym_ray.learner.learner import make_adam
 from robogym_ray.learner.networks import DistributionalCritic, Policy
+from robogym_ray.learner.schedules import linear_ramp
 from robogym_ray.storage import RunStorage, local_file, resolve_root
 from robogym_ray.text import clip_text
 from robogym_ray.training.config import TrainConfig

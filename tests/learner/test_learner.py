@@ -12,39 +12,12 @@ from robogym_ray.errors import ConfigError
 from robogym_ray.learner.behaviour import BehaviourPolicy, from_env_action, to_env_action
 from robogym_ray.learner.config import D4PGConfig
 from robogym_ray.learner.learner import D4PGLearner
-
-OBS, ACT = 3, 2
-
-
-def _config(**kw: object) -> D4PGConfig:
-    base = dict(
-        policy_hidden=(32, 32),
-        critic_hidden=(32, 32),
-        batch_size=16,
-        replay_capacity=512,
-        min_replay_size=32,
-        v_min=-10.0,
-        v_max=10.0,
-        target_update_period=3,
-        device="cpu",
-    )
-    return D4PGConfig(**{**base, **kw})  # type: ignore[arg-type]
-
-
-def _data(n: int, seed: int = 0) -> dict[str, np.ndarray]:
-    rng = np.random.default_rng(seed)
-    return {
-        "obs": rng.standard_normal((n, OBS), dtype=np.float32),
-        "action": rng.uniform(-1, 1, (n, ACT)).astype(np.float32),
-        "reward": rng.uniform(-1, 1, n).astype(np.float32),
-        "discount": rng.choice([0.0, 0.95], n).astype(np.float32),
-        "next_obs": rng.standard_normal((n, OBS), dtype=np.float32),
-    }
+from tests.learner.conftest import ACT, OBS, small_config, transitions
 
 
 def _learner(**kw: object) -> D4PGLearner:
-    learner = D4PGLearner(_config(**kw), OBS, ACT, seed=0)
-    learner.add(_data(200))
+    learner = D4PGLearner(small_config(**kw), OBS, ACT, seed=0)
+    learner.add(transitions(200))
     return learner
 
 
@@ -96,9 +69,9 @@ def test_weights_reach_the_actor_and_actions_are_bounded() -> None:
 
 def test_initial_priorities_are_positive_per_sample_losses() -> None:
     learner = _learner()
-    priorities = learner.compute_initial_priorities(_data(10, seed=1))
+    priorities = learner.compute_initial_priorities(transitions(10, seed=1))
     assert priorities.shape == (10,) and (priorities > 0).all()
-    learner.add(_data(10, seed=1), priorities)
+    learner.add(transitions(10, seed=1), priorities)
 
 
 def test_save_restore_gives_identical_outputs_and_training_continues(tmp_path: Path) -> None:
@@ -107,7 +80,7 @@ def test_save_restore_gives_identical_outputs_and_training_continues(tmp_path: P
         learner.step()
     path = tmp_path / "ckpt.pt"
     learner.save(path, include_replay=True)
-    clone = D4PGLearner(_config(), OBS, ACT, seed=42)
+    clone = D4PGLearner(small_config(), OBS, ACT, seed=42)
     clone.restore(path)
     obs = torch.randn(7, OBS)
     act = torch.rand(7, ACT) * 2 - 1
@@ -131,7 +104,7 @@ def test_restore_without_replay_keeps_the_networks(tmp_path: Path) -> None:
     learner.step()
     learner.save(tmp_path / "nets.pt")
     assert not (tmp_path / "nets.pt.replay.npz").exists()
-    clone = D4PGLearner(_config(), OBS, ACT, seed=1)
+    clone = D4PGLearner(small_config(), OBS, ACT, seed=1)
     clone.restore(tmp_path / "nets.pt")
     assert len(clone.replay) == 0
     obs = torch.randn(4, OBS)
@@ -177,7 +150,7 @@ def test_policy_average_survives_checkpoints_with_and_without_it(tmp_path: Path)
         learner.step()
     learner.save(tmp_path / "avg.pt")
     assert "policy_average" in torch.load(tmp_path / "avg.pt", weights_only=True)["nets"]
-    clone = D4PGLearner(_config(policy_average_tau=0.25), OBS, ACT, seed=3)
+    clone = D4PGLearner(small_config(policy_average_tau=0.25), OBS, ACT, seed=3)
     clone.restore(tmp_path / "avg.pt")
     obs = torch.randn(5, OBS)
     torch.testing.assert_close(clone.policy_average(obs), learner.policy_average(obs))
@@ -185,11 +158,11 @@ def test_policy_average_survives_checkpoints_with_and_without_it(tmp_path: Path)
     plain = _learner()
     plain.step()
     plain.save(tmp_path / "plain.pt")
-    later = D4PGLearner(_config(policy_average_tau=0.25), OBS, ACT, seed=4)
+    later = D4PGLearner(small_config(policy_average_tau=0.25), OBS, ACT, seed=4)
     later.restore(tmp_path / "plain.pt")
     torch.testing.assert_close(later.policy_average(obs), plain.policy(obs), rtol=0, atol=0)
     # And back: a learner without averaging ignores the stored average.
-    off = D4PGLearner(_config(), OBS, ACT, seed=5)
+    off = D4PGLearner(small_config(), OBS, ACT, seed=5)
     off.restore(tmp_path / "avg.pt")
     assert off.policy_average is None
     torch.testing.assert_close(off.policy(obs), learner.policy(obs), rtol=0, atol=0)
@@ -198,7 +171,7 @@ def test_policy_average_survives_checkpoints_with_and_without_it(tmp_path: Path)
 @pytest.mark.parametrize("tau", [-0.1, 1.0, float("nan")])
 def test_policy_average_tau_is_validated(tau: float) -> None:
     with pytest.raises(ConfigError, match="policy_average_tau"):
-        _config(policy_average_tau=tau)
+        small_config(policy_average_tau=tau)
 
 
 def test_learning_rates_decay_linearly_by_learner_step(tmp_path: Path) -> None:
@@ -211,8 +184,8 @@ def test_learning_rates_decay_linearly_by_learner_step(tmp_path: Path) -> None:
     assert learner.critic_opt.param_groups[0]["lr"] == pytest.approx(0.5e-3)
     # A restored learner picks the schedule up where the checkpoint left it, not at the start.
     learner.save(tmp_path / "decayed.pt")
-    clone = D4PGLearner(_config(**cfg, lr_final_scale=0.25), OBS, ACT, seed=1)
-    clone.add(_data(200))
+    clone = D4PGLearner(small_config(**cfg, lr_final_scale=0.25), OBS, ACT, seed=1)
+    clone.add(transitions(200))
     clone.restore(tmp_path / "decayed.pt")
     assert clone.step()["lr_scale"] == pytest.approx(0.25)
     # Off by default: the rates stay at their base values.
@@ -238,4 +211,4 @@ def test_learning_rates_decay_linearly_by_learner_step(tmp_path: Path) -> None:
 )
 def test_learning_rate_decay_is_validated(field: str, value: float) -> None:
     with pytest.raises(ConfigError, match=field):
-        _config(**{field: value})
+        small_config(**{field: value})

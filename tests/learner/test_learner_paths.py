@@ -1,7 +1,7 @@
-"""The learner's one code path for every device (issue 42): ``run`` equals the step the learner
-took before it (written out below), a replay on the learner's device samples what the host
-replay does (the same indices; its priorities within a few ulps: numpy and torch may round a
-power differently), block sampling, bf16 and torch.compile run on the CPU the tests have."""
+"""The learner's one code path for every device: ``run`` takes exactly the plain D4PG step
+written out below, bit for bit; a replay on the learner's device samples what the host replay
+does (the same indices; its priorities within a few ulps: numpy and torch may round a power
+differently); block sampling, bf16 and torch.compile run on the CPU the tests have."""
 
 from __future__ import annotations
 
@@ -17,22 +17,23 @@ from robogym_ray.learner.distributional import (
     expected_value,
 )
 from robogym_ray.learner.learner import D4PGLearner
-from tests.learner.test_learner import ACT, OBS, _config, _data
-
-
-def _filled(**kw: object) -> D4PGLearner:
-    learner = D4PGLearner(_config(**kw), OBS, ACT, seed=7)
-    for i in range(3):
-        learner.add(_data(100, seed=i))
-    return learner
+from robogym_ray.learner.schedules import importance_beta
+from tests.learner.conftest import (
+    assert_same,
+    filled_learner,
+    net_params,
+    small_config,
+    transitions,
+)
 
 
 def reference_step(learner: D4PGLearner) -> None:
-    """The learner's step as it was before ``run`` (commit e80ebaf), written out: per step one
-    prioritized sample, the critic's and the policy's update, priorities to the host, targets."""
+    """One plain D4PG step, written out with torch alone (only the learning-rate schedule and
+    the target update are the learner's): one prioritized sample, the critic's and the policy's
+    update, priorities to the host, targets."""
     c = learner.config
-    beta = learner.beta
-    learner._apply_lr()
+    beta = importance_beta(c, learner.num_steps)
+    learner.set_lr(learner.num_steps)
     batch, idx, weights = learner.replay.sample(c.batch_size, beta)
     b = {k: torch.as_tensor(v) for k, v in batch.items()}
     w = torch.as_tensor(weights)
@@ -54,35 +55,19 @@ def reference_step(learner: D4PGLearner) -> None:
     learner.policy_opt.step()
     learner.replay.update_priorities(idx, per_sample.detach().numpy())
     learner.num_steps += 1
-    learner._update_targets()
+    learner.update_targets()
 
 
-def _params(learner: D4PGLearner) -> list[torch.Tensor]:
-    nets = (learner.policy, learner.critic, learner.target_policy, learner.target_critic)
-    return [p.detach().clone() for net in nets for p in net.parameters()]
-
-
-def _assert_same(a: D4PGLearner, b: D4PGLearner, atol: float = 0.0) -> None:
-    for x, y in zip(_params(a), _params(b), strict=True):
-        torch.testing.assert_close(x, y, atol=atol, rtol=0 if atol == 0 else 1e-4)
-    leaves = np.arange(len(a.replay))
-    np.testing.assert_allclose(
-        a.replay.backend.to_numpy(a.replay.sum_tree.leaves(leaves)),
-        b.replay.backend.to_numpy(b.replay.sum_tree.leaves(leaves)),
-        rtol=1e-5 if atol else 0,
-    )
-
-
-def test_run_takes_exactly_the_step_the_learner_took_before() -> None:
+def test_run_takes_exactly_the_written_out_step() -> None:
     """Same seed, inserts, batch and priorities: the networks, targets and priorities after 7
     steps of ``run`` (in calls of 3, 1 and 3) equal the reference step's, bit for bit."""
-    new, old = _filled(), _filled()
+    new, old = filled_learner(), filled_learner()
     for steps in (3, 1, 3):  # target copies every 3 steps: calls cross a copy
         metrics = new.run(steps)
         for _ in range(steps):
             reference_step(old)
     assert metrics["steps"] == 7 == old.num_steps
-    _assert_same(new, old)
+    assert_same(new, old)
 
 
 def _recording_samples(learner: D4PGLearner) -> list[np.ndarray]:
@@ -106,13 +91,13 @@ def test_a_replay_on_the_learners_device_samples_what_the_host_replay_does() -> 
     draw moves only if it lands within an ulp of a prefix-sum boundary), the same updates to
     float32's own tolerance (weights are float64 ratios rounded to float32), and priorities
     within 4 ulps of each other; inserts, counters and the generator's state exactly equal."""
-    host, device = _filled(replay_device="host"), _filled(replay_device="learner")
+    host, device = filled_learner(replay_device="host"), filled_learner(replay_device="learner")
     assert host.replay.backend.on_host and not device.replay.backend.on_host
     assert isinstance(device.replay.storage["obs"], torch.Tensor)
     drawn = [_recording_samples(host), _recording_samples(device)]
     for _ in range(3):
         metrics = [host.run(4), device.run(4)]
-        new = _data(30, seed=9)
+        new = transitions(30, seed=9)
         host.add(new)
         device.add(new)
     assert len(drawn[0]) == len(drawn[1]) == 12
@@ -133,7 +118,7 @@ def test_a_replay_on_the_learners_device_samples_what_the_host_replay_does() -> 
 
 
 def _assert_same_to_ulps(a: D4PGLearner, b: D4PGLearner) -> None:
-    for x, y in zip(_params(a), _params(b), strict=True):
+    for x, y in zip(net_params(a), net_params(b), strict=True):
         torch.testing.assert_close(x, y)  # float32's default rtol 1.3e-6, atol 1e-5
     leaves = np.arange(len(a.replay))
     np.testing.assert_array_max_ulp(
@@ -146,7 +131,7 @@ def _assert_same_to_ulps(a: D4PGLearner, b: D4PGLearner) -> None:
 def test_blocks_of_batches_sampled_at_once() -> None:
     """``sgd_steps_per_sample`` 4: one sample of 4 batches per 4 steps, each batch a strided
     quarter (so it spans every stratum), each batch's priorities written after its step."""
-    learner = _filled(sgd_steps_per_sample=4)
+    learner = filled_learner(sgd_steps_per_sample=4)
     sampled, written = [], []
     sample, update = learner.replay.sample, learner.replay.update_priorities
 
@@ -171,7 +156,7 @@ def test_blocks_of_batches_sampled_at_once() -> None:
 
 
 def test_bf16_autocast_learns_like_float32() -> None:
-    fp32, bf16 = _filled(), _filled(bf16=True)
+    fp32, bf16 = filled_learner(), filled_learner(bf16=True)
     a, b = fp32.run(6), bf16.run(6)
     assert all(np.isfinite(v) for v in b.values())
     assert b["critic_loss"] == pytest.approx(a["critic_loss"], rel=0.05)
@@ -179,11 +164,11 @@ def test_bf16_autocast_learns_like_float32() -> None:
 
 
 def test_compiled_losses_give_the_eager_updates() -> None:
-    eager, compiled = _filled(), _filled(compile="default")
+    eager, compiled = filled_learner(), filled_learner(compile="default")
     for _ in range(2):
         a, b = eager.run(2), compiled.run(2)
     assert b["critic_loss"] == pytest.approx(a["critic_loss"], rel=1e-4)
-    _assert_same(eager, compiled, atol=1e-5)
+    assert_same(eager, compiled, atol=1e-5)
 
 
 @pytest.mark.parametrize(
@@ -193,4 +178,4 @@ def test_compiled_losses_give_the_eager_updates() -> None:
 )  # fmt: skip
 def test_bad_settings_are_refused_by_name(field: str, value: object) -> None:
     with pytest.raises(ConfigError, match=f"D4PGConfig.{field}="):
-        _config(**{field: value})
+        small_config(**{field: value})

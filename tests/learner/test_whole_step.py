@@ -11,8 +11,15 @@ import torch
 
 from robogym_ray.errors import ConfigError
 from robogym_ray.learner.learner import D4PGLearner
-from tests.learner.test_learner import ACT, OBS, _config, _data
-from tests.learner.test_learner_paths import _assert_same, _params
+from tests.learner.conftest import (
+    ACT,
+    OBS,
+    assert_same,
+    filled_learner,
+    net_params,
+    small_config,
+    transitions,
+)
 
 SCHEDULES = dict(lr_decay_start=2, lr_decay_steps=5, lr_final_scale=0.3,
                  importance_beta_steps=9, policy_average_tau=0.1)  # fmt: skip
@@ -20,10 +27,7 @@ SCHEDULES = dict(lr_decay_start=2, lr_decay_steps=5, lr_final_scale=0.3,
 
 
 def _filled(**kw: object) -> D4PGLearner:
-    learner = D4PGLearner(_config(**{**SCHEDULES, **kw}), OBS, ACT, seed=7)
-    for i in range(3):
-        learner.add(_data(100, seed=i))
-    return learner
+    return filled_learner(**{**SCHEDULES, **kw})
 
 
 class _TorchDraws:
@@ -44,19 +48,19 @@ def test_given_the_same_draws_the_whole_step_takes_the_host_paths_steps(sgd_step
     host-stepped loop's bit for bit, and so do the metrics."""
     whole = _filled(whole_step="on", sgd_steps_per_sample=sgd_steps)
     host = _filled(replay_device="learner", sgd_steps_per_sample=sgd_steps)
-    assert whole.whole is not None and host.whole is None
+    assert whole.device_loop is not None and host.device_loop is None
     assert isinstance(whole.policy_opt.param_groups[0]["lr"], torch.Tensor)
     drawn = _TorchDraws(5).generator
-    whole.whole.draw = lambda n: torch.rand(n, dtype=torch.float64, generator=drawn)
+    whole.device_loop.draw = lambda n: torch.rand(n, dtype=torch.float64, generator=drawn)
     host.replay.rng = _TorchDraws(5)
     for steps in (4, 2, 5):
         a, b = whole.run(steps), host.run(steps)
         assert a == pytest.approx(b, rel=1e-6, abs=0)
-        new = _data(20, seed=steps)  # inserts between calls move the fill level and the max
+        new = transitions(20, seed=steps)  # inserts between calls move the fill level and the max
         whole.add(new)
         host.add(new)
-    assert whole.num_steps == host.num_steps == 11 == int(whole.whole.step)
-    _assert_same(whole, host)
+    assert whole.num_steps == host.num_steps == 11 == int(whole.device_loop.step)
+    assert_same(whole, host)
     for x, y in zip(whole.policy_average.parameters(), host.policy_average.parameters(),
                     strict=True):  # fmt: skip
         torch.testing.assert_close(x, y, atol=0, rtol=0)
@@ -81,7 +85,7 @@ def test_its_own_draws_are_reproducible_and_spread_over_the_replay() -> None:
     first = a.run(6)
     b = _filled(whole_step="on")
     assert b.run(6) == first
-    _assert_same(a, b)
+    assert_same(a, b)
     idx = torch.cat(seen)
     assert idx.min() >= 0 and idx.max() < len(a.replay)
     assert idx.unique().numel() > 0.5 * idx.numel()  # stratified: not one slot over and over
@@ -95,18 +99,18 @@ def test_a_restored_whole_step_goes_on_as_if_never_stopped(tmp_path) -> None:  #
     first.run(6)
     first.save(tmp_path / "learner.pt", include_replay=True)
     went_on = first.run(7)
-    resumed = D4PGLearner(_config(**{**SCHEDULES, **kw}), OBS, ACT, seed=99)
+    resumed = D4PGLearner(small_config(**{**SCHEDULES, **kw}), OBS, ACT, seed=99)
     resumed.restore(tmp_path / "learner.pt")
-    assert int(resumed.whole.step) == resumed.num_steps == 6
+    assert int(resumed.device_loop.step) == resumed.num_steps == 6
     assert isinstance(resumed.critic_opt.param_groups[0]["lr"], torch.Tensor)
     assert resumed.run(7) == went_on
-    for x, y in zip(_params(first), _params(resumed), strict=True):
+    for x, y in zip(net_params(first), net_params(resumed), strict=True):
         torch.testing.assert_close(x, y, atol=0, rtol=0)
 
 
 def test_auto_is_the_host_loop_on_a_cpu() -> None:
     learner = _filled(whole_step="auto")
-    assert learner.whole is None and learner.replay.backend.on_host
+    assert learner.device_loop is None and learner.replay.backend.on_host
 
 
 @pytest.mark.parametrize(
@@ -117,7 +121,7 @@ def test_auto_is_the_host_loop_on_a_cpu() -> None:
 )  # fmt: skip
 def test_settings_it_cannot_run_with_are_refused(kw: dict, why: str) -> None:
     with pytest.raises(ConfigError, match="D4PGConfig.whole_step=") as refused:
-        _config(**kw)
+        small_config(**kw)
     assert why in str(refused.value)
 
 
@@ -127,14 +131,10 @@ def test_on_cuda_the_captured_graph_takes_the_host_paths_steps() -> None:
     replays it; fed the host path's draws through one device buffer that the graph reads, its
     11 steps (schedules moving, hard copies, priorities, inserts between calls) match the host
     loop's to float32 round-off (atomics in the backward make a GPU's sums order-dependent)."""
-    kw = dict(device="cuda", **SCHEDULES)
-    whole = D4PGLearner(_config(whole_step="on", **kw), OBS, ACT, seed=7)
-    host = D4PGLearner(_config(replay_device="learner", **kw), OBS, ACT, seed=7)
-    for learner in (whole, host):
-        for i in range(3):
-            learner.add(_data(100, seed=i))
+    whole = _filled(whole_step="on", device="cuda")
+    host = _filled(replay_device="learner", device="cuda")
     draws = torch.zeros(whole.config.batch_size, dtype=torch.float64, device="cuda")
-    whole.whole.draw = lambda n: draws  # the graph keeps reading this buffer
+    whole.device_loop.draw = lambda n: draws  # the graph keeps reading this buffer
     source = _TorchDraws(5)
     host.replay.rng = _TorchDraws(5)
     for steps in (4, 2, 5):
@@ -142,9 +142,10 @@ def test_on_cuda_the_captured_graph_takes_the_host_paths_steps() -> None:
             draws.copy_(torch.from_numpy(source.random(len(draws))))
             a, b = whole.run(1), host.run(1)
         assert a == pytest.approx(b, rel=1e-4, abs=1e-6)
-        new = _data(20, seed=steps)
+        new = transitions(20, seed=steps)
         whole.add(new)
         host.add(new)
-    assert whole.whole.graph is not None and whole.num_steps == int(whole.whole.step) == 11
-    for x, y in zip(_params(whole), _params(host), strict=True):
+    loop = whole.device_loop
+    assert loop.graph is not None and whole.num_steps == int(loop.step) == 11
+    for x, y in zip(net_params(whole), net_params(host), strict=True):
         torch.testing.assert_close(x, y, rtol=1e-4, atol=1e-5)
