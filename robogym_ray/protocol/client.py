@@ -12,6 +12,9 @@ cause              when
 ``rejected``       the server answered ``success=false``; the message carries the server's
                    reason (trailing metadata ``robogym-error`` or ``string_params["error"]``)
 ``unauthenticated`` gRPC ``UNAUTHENTICATED`` (missing or wrong ``robogym-token``)
+``tls``            a TLS refusal (``TlsError``): the server's certificate is not signed by the
+                   CA of ``tls_ca``, or the server requires TLS and the client has no CA (or
+                   the other way round)
 ``rpc``            any other gRPC status (the status name is in the message)
 =================  ===============================================================
 
@@ -20,6 +23,7 @@ Actions are checked before they are sent: wrong shape, NaN or inf raise ``Invali
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -30,6 +34,7 @@ import numpy as np
 from robogym_ray.errors import InvalidActionError, RobotServerError
 from robogym_ray.protocol import robot_server_pb2 as pb
 from robogym_ray.protocol import robot_server_pb2_grpc as pb_grpc
+from robogym_ray.protocol.tls import open_channel, read_ca, tls_refusal
 
 ERROR_METADATA_KEY = "robogym-error"
 TOKEN_METADATA_KEY = "robogym-token"
@@ -72,19 +77,27 @@ class RobotServerClient:
         address: ``host:port`` of the robot server.
         deadlines: per-RPC deadlines in seconds.
         token: optional shared secret sent as gRPC metadata ``robogym-token``.
+        tls_ca: the CA that signed the server's TLS certificate: a PEM file's path, or its
+            bytes; None = a plain channel (robo-gym's servers and ``serve`` without
+            ``--tls-cert``).
     """
 
     def __init__(
-        self, address: str, *, deadlines: Deadlines | None = None, token: str | None = None
+        self,
+        address: str,
+        *,
+        deadlines: Deadlines | None = None,
+        token: str | None = None,
+        tls_ca: str | os.PathLike | bytes | None = None,
     ) -> None:
         self.address = address
         self.deadlines = deadlines or Deadlines()
         self._metadata = ((TOKEN_METADATA_KEY, token),) if token else None
+        ca = read_ca(tls_ca, "tls_ca")
+        self._secure = ca is not None
         # A private subchannel pool: after a server restart on the same port, a shared pool
         # would make this client wait out gRPC's reconnect backoff of an older channel.
-        self._channel = grpc.insecure_channel(
-            address, options=(("grpc.use_local_subchannel_pool", 1),)
-        )
+        self._channel = open_channel(address, ca, (("grpc.use_local_subchannel_pool", 1),))
         self._stub = pb_grpc.RobotServerStub(self._channel)
 
     # -- robo-gym's RPCs -------------------------------------------------------------------
@@ -124,6 +137,20 @@ class RobotServerClient:
             raise self._rejected("GetArguments", call)
         return reply
 
+    def recover_from_errors(self) -> bool:
+        """RecoverFromErrors (ours): a hardware server clears its arm's errors. False from a
+        server without it (robo-gym's, which answer ``UNIMPLEMENTED``); a refusal (the arm
+        still faulted, its controller unreachable) raises RobotServerError."""
+        try:
+            reply, call = self._call("RecoverFromErrors", pb.Empty(), self.deadlines.set_state)
+        except RobotServerError as exc:
+            if exc.cause == "rpc" and "UNIMPLEMENTED" in str(exc):
+                return False
+            raise
+        if not reply.success:
+            raise self._rejected("RecoverFromErrors", call)
+        return True
+
     def close(self) -> None:
         self._channel.close()
 
@@ -153,6 +180,11 @@ class RobotServerClient:
             cause = _CAUSES.get(code, "rpc")
             if cause == "deadline":
                 raise deadline_error(rpc, deadline, self.address) from None
+            refused = (
+                tls_refusal(self.address, details, self._secure) if cause == "connection" else None
+            )
+            if refused is not None:
+                raise refused from None
             raise RobotServerError(
                 f"{rpc} failed: {code.name}: {details}", address=self.address, cause=cause
             ) from None
