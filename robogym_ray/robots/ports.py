@@ -84,16 +84,29 @@ def port_in_use(host: str, port: int, what: str) -> PortInUseError:
     )
 
 
-def listen(server: grpc.Server, host: str, port: int, what: str) -> int:
+def listen(
+    server: grpc.Server,
+    host: str,
+    port: int,
+    what: str,
+    credentials: grpc.ServerCredentials | None = None,
+) -> int:
     """Bind ``server`` (made by ``grpc_server``) to ``host:port``; returns the bound port.
+
+    ``credentials`` (``protocol.tls.ServerTls.credentials()``) make it a TLS port; without,
+    a plain one.
 
     Raises:
         PortInUseError: the port is held (by another server of ours or any other program).
         BindError: it cannot be bound for another reason.
     """
     check_port_free(host, port, what)
+    address = f"[{host}]:{port}" if ":" in host else f"{host}:{port}"
     try:
-        bound = server.add_insecure_port(f"[{host}]:{port}" if ":" in host else f"{host}:{port}")
+        if credentials is None:
+            bound = server.add_insecure_port(address)
+        else:
+            bound = server.add_secure_port(address, credentials)
     except RuntimeError:  # grpcio >= 1.5x raises where older versions returned 0
         bound = 0
     if bound == 0:

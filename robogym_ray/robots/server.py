@@ -24,9 +24,10 @@ import grpc
 import numpy as np
 
 from robogym_ray.config import check_port
-from robogym_ray.errors import BindError, InvalidActionError, RoboGymRayError
+from robogym_ray.errors import BindError, ConfigError, InvalidActionError, RoboGymRayError
 from robogym_ray.protocol import robot_server_pb2 as pb
 from robogym_ray.protocol import robot_server_pb2_grpc as pb_grpc
+from robogym_ray.protocol.tls import ServerTls
 from robogym_ray.robots.base import RobotArguments, SimRobot, StateRequest, StateSnapshot
 from robogym_ray.robots.command_handler import CommandHandler
 from robogym_ray.robots.ports import check_port_free, grpc_server, listen
@@ -36,6 +37,7 @@ from robogym_ray.text import clip_text
 
 if TYPE_CHECKING:
     from robogym_ray.robots.emulation import EmulationConfig
+    from robogym_ray.robots.hardware import HardwareConfig
 
 log = logging.getLogger(__name__)
 
@@ -107,6 +109,16 @@ class RobotServerCore:
     def get_arguments(self) -> RobotArguments:
         """What the robot was launched with (GetArguments); a pure read."""
         return self.robot.arguments()
+
+    def recover(self) -> None:
+        """RecoverFromErrors: a hardware robot clears its errors (raises if it cannot); a
+        simulated one has none. The handler's queue is dropped: nothing stale moves the arm."""
+        with self._lock:
+            recover = getattr(self.robot, "recover", None)
+            if recover is not None:
+                recover()
+            self.handler.clear()
+            self.buffer.update(**self.robot.read_sensors())
 
     def close(self) -> None:
         self._stop.set()
@@ -227,6 +239,14 @@ class RobotServerServicer(pb_grpc.RobotServerServicer):
             self._report(context, "GetArguments", exc)
             return pb.Arguments(success=False)
 
+    def RecoverFromErrors(self, request: pb.Empty, context: grpc.ServicerContext) -> pb.Success:  # noqa: N802
+        try:
+            self.core.recover()
+            return pb.Success(success=True)
+        except Exception as exc:  # noqa: BLE001
+            self._report(context, "RecoverFromErrors", exc)
+            return pb.Success(success=False)
+
     def _fail_state(self, context: grpc.ServicerContext, rpc: str, exc: Exception) -> pb.State:
         message = self._report(context, rpc, exc)
         return pb.State(success=False, string_params={"error": message})
@@ -338,16 +358,29 @@ def start_robot_server(
     token: str | None = None,
     max_workers: int = 10,
     emulation: EmulationConfig | None = None,
+    tls: ServerTls | None = None,
+    hardware: HardwareConfig | None = None,
 ) -> RobotServerHandle:
     """Build the robot and serve it on ``host:port`` (port 0 = a free port); returns at once.
 
     ``emulation`` serves an emulated real robot (latency, noise, dynamics differences; see
-    ``robots.emulation``) instead of the plain simulation.
+    ``robots.emulation``) instead of the plain simulation. ``tls`` (``protocol.tls.server_tls``)
+    serves it over TLS; without, on a plain port as robo-gym's servers do. ``hardware`` serves
+    the real robot through one of its card's backends (``robots.hardware``), always paced by
+    the wall clock.
     """
     # Before the robot is built: nothing to undo, and no PyBullet banner before the error.
     check_port(port, "robot server port")
     check_port_free(host, port, "robot server port")
-    sim_robot: SimRobot = make_robot(robot, scene=scene, seed=seed, options=options)
+    if hardware is not None:
+        if emulation is not None:
+            raise ConfigError("a hardware robot cannot also be emulated: drop --emulate-hardware")
+        from robogym_ray.robots.hardware import make_hardware_robot
+
+        real_time = True
+        sim_robot: SimRobot = make_hardware_robot(robot, hardware.backend, options or {}, hardware)
+    else:
+        sim_robot = make_robot(robot, scene=scene, seed=seed, options=options)
     if emulation is not None:
         from robogym_ray.robots.emulation import emulate
 
@@ -357,7 +390,7 @@ def start_robot_server(
     server = grpc_server(max_workers, interceptors)
     pb_grpc.add_RobotServerServicer_to_server(RobotServerServicer(core), server)
     try:
-        bound = listen(server, host, port, "robot server port")
+        bound = listen(server, host, port, "robot server port", tls.credentials() if tls else None)
     except BindError:
         core.close()
         raise

@@ -19,6 +19,7 @@ import grpc
 from robogym_ray.errors import RoboGymRayError
 from robogym_ray.protocol import server_manager_pb2 as sm
 from robogym_ray.protocol import server_manager_pb2_grpc as sm_grpc
+from robogym_ray.protocol.tls import ServerTls
 from robogym_ray.robots.ports import grpc_server, listen
 from robogym_ray.robots.registry import check_options
 from robogym_ray.supervision.launch import LaunchSpec, parse_launch_cmd
@@ -171,8 +172,11 @@ def serve_manager(
     port: int = 50100,
     node: str | None = None,
     limits: ManagerLimits | None = None,
+    tls: ServerTls | None = None,
 ) -> tuple[grpc.Server, int]:
     """Start the ServerManager service on ``host:port``; returns the server and the bound port.
+
+    ``tls`` serves it over TLS (robo-gym's own client, which has no TLS, then cannot use it).
 
     Raises:
         PortInUseError: the port is held (by another manager, robot server or any program);
@@ -185,6 +189,7 @@ def serve_manager(
     starts = service.limits.max_concurrent_starts + service.limits.max_waiting_starts
     server = grpc_server(starts + SPARE_THREADS)
     sm_grpc.add_ServerManagerServicer_to_server(service, server)
-    bound = listen(server, host, port, "server manager port")
+    credentials = tls.credentials() if tls else None
+    bound = listen(server, host, port, "server manager port", credentials)
     server.start()
     return server, bound
