@@ -13,7 +13,10 @@ import signal
 import threading
 
 from robogym_ray.config import add_config_args, config_from_args
+from robogym_ray.errors import ConfigError
+from robogym_ray.protocol.tls import server_tls
 from robogym_ray.robots.emulation import EmulationConfig
+from robogym_ray.robots.hardware import HardwareConfig
 from robogym_ray.robots.registry import robot_card
 from robogym_ray.robots.serve import ServeConfig, is_loopback, parse_options
 from robogym_ray.robots.server import start_robot_server
@@ -48,12 +51,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     cfg = config_from_args(ServeConfig, args)
+    tls = server_tls(cfg.tls_cert, cfg.tls_key)  # read and checked before the robot is built
     card = robot_card(cfg.robot)  # an unknown name: UnknownRobotError, with a "did you mean"
     token = cfg.token or os.environ.get("ROBOGYM_RAY_TOKEN") or None
     if not is_loopback(cfg.host) and token is None:
         log.warning(
             "listening on %s without a token: anyone who reaches it can move the robot", cfg.host
         )
+    elif not is_loopback(cfg.host) and tls is None:
+        log.warning("listening on %s without TLS: the token travels in clear (--tls-cert, "
+                    "--tls-key)", cfg.host)  # fmt: skip
+    hardware = None
+    if cfg.hardware is not None:  # checked before anything connects to the arm
+        hardware = HardwareConfig(cfg.hardware, cfg.fci_host or "", cfg.dynamics_factor)
+    elif cfg.fci_host is not None:
+        raise ConfigError("--fci-host is the address of a real arm: give --hardware too")
     scene, options = serve_defaults(card.serve_env, cfg.scene, parse_options(cfg.option))
     handle = start_robot_server(
         cfg.robot,
@@ -64,6 +76,8 @@ def run(args: argparse.Namespace) -> int:
         port=cfg.port,
         real_time=cfg.real_time,
         token=token,
+        tls=tls,
+        hardware=hardware,
         emulation=config_from_args(EmulationConfig, args, "emu-") if cfg.emulate_hardware else None,
     )
     stop = threading.Event()

@@ -23,7 +23,7 @@ class ServeConfig:
     """What ``robogym-ray serve`` starts."""
 
     robot: str = "mir100"
-    """Robot model: mir100, panda, ur3, ur3e, ur5, ur5e, ur10, ur10e or ur16e."""
+    """Robot model: mir100, panda, fr3, ur3, ur3e, ur5, ur5e, ur10, ur10e or ur16e."""
     scene: str | None = None
     """Scene name (mir100: lab_6x8, empty; UR: empty, tabletop); default: the robot's own."""
     host: str = "127.0.0.1"
@@ -34,10 +34,22 @@ class ServeConfig:
     """Pace the simulation against the wall clock (emulating a real robot's driver)."""
     emulate_hardware: bool = False
     """Serve an emulated real robot: latency, sensor noise, dynamics differences (--emu-*)."""
+    hardware: str | None = None
+    """Serve the real robot through this backend of its card (fr3: franky, libfranka's client;
+    pip install -e ".[franka]"); always paced by the wall clock. Needs --fci-host."""
+    fci_host: str | None = None
+    """With --hardware: the arm's address (a Franka's FCI: its IP, FCI enabled in Desk)."""
+    dynamics_factor: float = 0.1
+    """With --hardware: resets move the arm at this fraction of its velocity, acceleration
+    and jerk limits, in (0, 1]; the robot's card caps it (fr3: 0.3)."""
     seed: int | None = None
     """Seed of the robot's own randomness (sensor noise, object trajectories)."""
     token: str | None = None
     """Shared token clients must send as gRPC metadata 'robogym-token' (or ROBOGYM_RAY_TOKEN)."""
+    tls_cert: str | None = None
+    """PEM certificate chain: serve over TLS (with --tls-key; clients then need --tls-ca)."""
+    tls_key: str | None = None
+    """PEM private key of --tls-cert (unencrypted; keep it readable by this user only)."""
     option: tuple[str, ...] = ()
     """Robot options as robo-gym launch arguments, e.g. rs_mode=only_robot action_cycle_rate=20.
     Default: those of the robot's README env, a UR arm's EndEffectorPositioning (rs_mode=1object
