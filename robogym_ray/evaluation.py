@@ -33,6 +33,7 @@ from robogym_ray.envs.registration import server_spec_of, variant_id
 from robogym_ray.envs.render.video import EpisodeVideos
 from robogym_ray.errors import ConfigError
 from robogym_ray.experience.episodes import greedy_episode
+from robogym_ray.protocol.tls import read_ca
 from robogym_ray.robots.serve import serve_process
 
 
@@ -54,6 +55,9 @@ class EvaluationConfig:
     """Episode step limit (default: the task's)."""
     token: str | None = None
     """Shared token of the robot server, if it wants one."""
+    tls_ca: str | None = None
+    """PEM file of the CA that signed the robot server's TLS certificate (its serve
+    --tls-cert); the server is verified against it. Default: a plain connection."""
     via_actor: bool = False
     """Drive the robot server through a real-robot actor on a local Ray (safety filter)."""
     online_weights: bool = False
@@ -91,6 +95,8 @@ class EvaluationConfig:
             raise ConfigError(f"episodes must be >= 1, got {self.episodes}")
         if self.video_episodes < 1:
             raise ConfigError(f"video_episodes must be >= 1, got {self.video_episodes}")
+        if self.tls_ca is not None and self.rs_address is None:
+            raise ConfigError("--tls-ca is for a robot server at --rs-address: add it")
         if self.via_actor and (self.rs_address is None or self.variant != "rob"):
             raise ConfigError("via_actor needs --rs-address and --variant rob")
         for flag, given in (("--io-descriptors", self.io_descriptors is not None),
@@ -271,6 +277,7 @@ def evaluate(policy_path: str | Path, cfg: EvaluationConfig) -> EvaluationResult
     from robogym_ray.export import load_policy, sidecar_path
     from robogym_ray.storage import local_file
 
+    tls_ca = read_ca(cfg.tls_ca)  # one line naming the file, before the policy is loaded
     policy_path = local_file(policy_path, "policy")  # an object store's: downloaded once
     if cfg.isaac_lab:
         from robogym_ray.isaac_lab import IsaacLabPolicy
@@ -294,6 +301,7 @@ def evaluate(policy_path: str | Path, cfg: EvaluationConfig) -> EvaluationResult
     if cfg.rs_address:
         env_id = variant_id(env_id, cfg.variant)
         kwargs["rs_address"] = cfg.rs_address
+        kwargs["tls_ca"] = tls_ca
     else:
         env_id = variant_id(env_id, "sim")
     try:
@@ -306,7 +314,7 @@ def evaluate(policy_path: str | Path, cfg: EvaluationConfig) -> EvaluationResult
             from robogym_ray.distributed.real_client import real_robot_actor  # imports Ray
 
             kwargs["client_factory"] = stack.enter_context(
-                real_robot_actor(env_id, cfg.rs_address, cfg.token)
+                real_robot_actor(env_id, cfg.rs_address, cfg.token, tls_ca)
             )
         videos = None
         if cfg.video:

@@ -100,8 +100,11 @@ class RealRobotClientFactory:
 
 
 @contextlib.contextmanager
-def real_robot_actor(env_id: str, address: str, token: str | None) -> Iterator[Any]:
-    """A real-robot actor on ``address`` (on a new local Ray if none); yields a client factory."""
+def real_robot_actor(
+    env_id: str, address: str, token: str | None, tls_ca: bytes | None = None
+) -> Iterator[Any]:
+    """A real-robot actor on ``address`` (on a new local Ray if none); yields a client factory.
+    ``tls_ca``: the PEM of its server's TLS CA (None: a plain channel)."""
     from robogym_ray.distributed import remote  # imports every actor class: only when used
     from robogym_ray.realrobot.safety import safety_for
 
@@ -109,7 +112,7 @@ def real_robot_actor(env_id: str, address: str, token: str | None) -> Iterator[A
     if started:
         start_local_ray(1, namespace=NAMESPACE, log_to_driver=False)
     name = f"eval-real-{os.getpid()}-{time.monotonic_ns()}"
-    actor = remote.start_real_robot(name, address, safety_for(env_id), token=token)
+    actor = remote.start_real_robot(name, address, safety_for(env_id), token=token, tls_ca=tls_ca)
     try:
         yield RealRobotClientFactory(name, namespace=NAMESPACE)
     finally:

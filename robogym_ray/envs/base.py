@@ -31,6 +31,7 @@ that learners bootstrap from the last state. ``info["final_status"]`` is set on 
 from __future__ import annotations
 
 import math
+import os
 from abc import abstractmethod
 from collections.abc import Callable, Mapping
 from typing import Any, ClassVar
@@ -49,6 +50,7 @@ from robogym_ray.envs.servers import (
 from robogym_ray.errors import ConfigError, InvalidStateError, RobotServerError
 from robogym_ray.protocol import robot_server_pb2 as pb
 from robogym_ray.protocol.client import Deadlines, RobotServerClient, check_action
+from robogym_ray.protocol.tls import read_ca
 
 StepInfo = dict[str, Any]
 
@@ -69,6 +71,8 @@ class RobotServerEnv(gym.Env[np.ndarray, np.ndarray]):
         provider: where a Sim env gets servers (default ``InProcessServerProvider()``; the
             training program passes its own).
         token: shared token for the server (gRPC metadata ``robogym-token``).
+        tls_ca: the CA of a TLS server's certificate (``serve --tls-cert``): a PEM file's path
+            or its bytes, read now; the server is verified against it. None: a plain channel.
         deadlines: per-RPC deadlines (default: ``Deadlines.fast()`` for the default embedded
             server, robo-gym's (spec a.2) for any other server).
         server_seed: seed of an embedded server's own randomness (default: the first
@@ -76,9 +80,10 @@ class RobotServerEnv(gym.Env[np.ndarray, np.ndarray]):
         max_steps: step limit (truncation) of this instance; default: the class attribute
             ``max_episode_steps``. (``gymnasium.make(id, max_episode_steps=N)`` instead wraps
             the env in gymnasium's ``TimeLimit``, which sets no ``final_status``.)
-        client_factory: builds the client from ``(address, deadlines=, token=)`` instead of a
-            direct gRPC ``RobotServerClient`` (the training program routes a real robot's env
-            through its real-robot actor this way, for the safety filter and pause/resume).
+        client_factory: builds the client from ``(address, deadlines=, token=, tls_ca=)``
+            instead of a direct gRPC ``RobotServerClient`` (the training program routes a real
+            robot's env through its real-robot actor this way, for the safety filter and
+            pause/resume).
         render_mode: None, ``"rgb_array"`` or ``"human"`` (see the module docstring).
         render_config: frame size and camera (default ``RenderConfig()``: 640 x 480, the
             robot family's default camera).
@@ -99,6 +104,7 @@ class RobotServerEnv(gym.Env[np.ndarray, np.ndarray]):
         rs_address: str | None = None,
         provider: ServerProvider | None = None,
         token: str | None = None,
+        tls_ca: str | os.PathLike | bytes | None = None,
         deadlines: Deadlines | None = None,
         server_seed: int | None = None,
         max_steps: int | None = None,
@@ -134,6 +140,7 @@ class RobotServerEnv(gym.Env[np.ndarray, np.ndarray]):
             provider = StaticServerProvider(rs_address, token)
         self.provider: ServerProvider = provider or default_provider()
         self.token = token
+        self.tls_ca = read_ca(tls_ca, "tls_ca")  # a bad file is refused here, not at reset
         if deadlines is None:
             # Our own simulations (embedded or supervised) answer in milliseconds: short
             # deadlines turn a hung server into a restart quickly. A fixed address may be a
@@ -301,7 +308,9 @@ class RobotServerEnv(gym.Env[np.ndarray, np.ndarray]):
             else:
                 token = getattr(self.lease, "token", None) or self.token
                 factory = self.client_factory or RobotServerClient
-                self.client = factory(self.lease.address, deadlines=self.deadlines, token=token)
+                self.client = factory(
+                    self.lease.address, deadlines=self.deadlines, token=token, tls_ca=self.tls_ca
+                )
             self._check_arguments(self.client)
         return self.client
 

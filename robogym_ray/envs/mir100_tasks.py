@@ -180,8 +180,8 @@ class NoObstacleNavigationMir100(_Mir100Task):
     least 1 m away. ``reset(options={"start_pose": [x, y, yaw], "target_pose": [x, y, 0]})``.
 
     ## Arguments
-    See ``RobotServerEnv`` (real_robot, rs_address, provider, token, deadlines, server_seed,
-    max_steps).
+    See ``RobotServerEnv`` (real_robot, rs_address, provider, token, tls_ca, deadlines,
+    server_seed, max_steps).
     """
 
     scene = "empty"
