@@ -18,7 +18,10 @@ from robogym_ray.errors import RoboGymRayError
 COMMANDS: dict[str, tuple[str, str]] = {
     "serve": ("robogym_ray.serve", "Start a standalone robot server (robo-gym protocol)."),
     "manager": ("robogym_ray.distributed.manager", "Serve robo-gym's server manager (supervised)."),
-    "resume": ("robogym_ray.distributed.resume", "Resume a paused real robot (operator)."),
+    "resume-robot": (
+        "robogym_ray.distributed.resume",
+        "Resume a paused real robot of a running training (operator).",
+    ),
     "train": ("robogym_ray.training.command", "Train D4PG with rollout workers on Ray."),
     "sweep": ("robogym_ray.sweep.command", "Run trainings over a search space (Ray Tune)."),
     "tasks": ("robogym_ray.training.tasks", "List the training tasks and the env ids."),
@@ -26,6 +29,11 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "export": ("robogym_ray.export", "Export a policy as TorchScript or ONNX, plus JSON."),
     "run-policy": ("robogym_ray.run_policy", "Drive a robot server with an exported policy."),
 }
+RETIRED: dict[str, str] = {
+    "resume": "`robogym-ray resume` is now `resume-robot` (a paused real robot); a sweep resumes "
+    "with `robogym-ray sweep --resume NAME --storage DIR`",
+}
+"""Former command names, not listed: each answers one line that names what to run instead."""
 
 
 def build_parser(argv: Sequence[str]) -> argparse.ArgumentParser:
@@ -46,6 +54,10 @@ def build_parser(argv: Sequence[str]) -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
+    named = next((a for a in argv if a in COMMANDS or a in RETIRED), None)
+    if named in RETIRED:
+        print(f"error: {RETIRED[named]}", file=sys.stderr)
+        return 2
     args = build_parser(argv).parse_args(argv)
     logging.basicConfig(level=args.log_level.upper(), format="%(asctime)s %(name)s %(message)s")
     module = importlib.import_module(COMMANDS[args.command][0])

@@ -57,6 +57,11 @@ class RobotServerError(RoboGymRayError):
         self.cause = cause
 
 
+class RayNotFoundError(RoboGymRayError, ConnectionError):
+    """No Ray runs at the address a command was told to join (``auto``: none on this machine);
+    raised before ``ray.init``, which would print a traceback or wait for the address."""
+
+
 class RenderError(RoboGymRayError, RuntimeError):
     """A render mode cannot work here (no display for ``human``, a missing optional package)."""
 

@@ -260,7 +260,7 @@ def test_addresses_are_checked_before_anything_starts(
     assert line == "error: --rs-address 'robot:port' is not HOST:PORT (port 1-65535)"
     line = fails(capfd, "evaluate", str(out), "--rs-address", "robot:70000")
     assert "--rs-address 'robot:70000'" in line
-    line = fails(capfd, "resume", "arm", "--ray-address", "nowhere")
+    line = fails(capfd, "resume-robot", "arm", "--ray-address", "nowhere")
     assert line == "error: --ray-address 'nowhere' is not HOST:PORT (port 1-65535)"
     line = fails(capfd, "manager", "--port", "0", "--ray-address", "nowhere")
     assert line == "error: --ray-address 'nowhere' is not HOST:PORT (port 1-65535)"

@@ -80,6 +80,34 @@ def test_train_rejects_bad_emulation_settings_before_starting_ray(
     assert "robot task" in err
 
 
+@pytest.mark.usefixtures("ray_must_not_start")
+def test_resume_robot_without_a_ray_answers_in_one_line_and_names_the_sweeps_resume(
+    capfd: pytest.CaptureFixture, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import socket
+
+    import ray._private.services as ray_services
+
+    sweeps = "a sweep resumes with `robogym-ray sweep --resume arm --storage DIR`"
+    with socket.socket() as held:  # bound, not listening: a port where no Ray answers
+        held.bind(("127.0.0.1", 0))
+        address = f"127.0.0.1:{held.getsockname()[1]}"
+        (line,) = refused(capfd, "resume-robot", "arm", "--ray-address", address).splitlines()
+        assert f"no Ray answers at {address}" in line and line.endswith(sweeps)
+        monkeypatch.setenv("RAY_ADDRESS", address)  # --ray-address auto reads it first
+        (line,) = refused(capfd, "resume-robot", "arm").splitlines()
+        assert f"--ray-address auto: no Ray answers at {address}" in line
+    # No Ray on the machine at all (the suite's own Ray and any other are hidden from the lookup).
+    monkeypatch.delenv("RAY_ADDRESS")
+    monkeypatch.setattr(ray_services, "find_gcs_addresses", lambda: [])
+    monkeypatch.setattr(ray_services, "find_bootstrap_address", lambda temp_dir=None: None)
+    (line,) = refused(capfd, "resume-robot", "arm").splitlines()
+    assert "no Ray runs on this machine" in line and line.endswith(sweeps)
+    # The command's former name answers what it became and where a sweep is resumed.
+    (line,) = refused(capfd, "resume", "arm").splitlines()
+    assert "now `resume-robot` (a paused real robot)" in line and "sweep --resume NAME" in line
+
+
 def test_train_merges_emulation_from_config_file_and_flags(tmp_path: Path) -> None:
     import argparse
 

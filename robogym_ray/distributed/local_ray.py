@@ -13,7 +13,7 @@ Windows: ``RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER=0`` makes ``get_node_ip_address`` a
 environment the node's processes inherit). A cluster (``--address``) is untouched: its nodes
 were started by ``ray start`` with the addresses their owner chose.
 
-A second process that joins such a Ray (``robogym-ray resume --ray-address 127.0.0.1:PORT``)
+A second process that joins such a Ray (``robogym-ray resume-robot --ray-address 127.0.0.1:PORT``)
 needs the same switch, or Ray rewrites 127.0.0.1 to the routable IP, where nothing listens, and
 waits for a GCS it cannot reach: ``join_ray`` sets it when the address is loopback and the port
 does not answer on the routable IP.
@@ -30,10 +30,14 @@ from typing import Any
 
 import ray
 
+from robogym_ray.errors import RayNotFoundError
+
 log = logging.getLogger(__name__)
 
 LOOPBACK = "127.0.0.1"
 _CLUSTER_SWITCH = "RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER"
+_PROBE_S = 5.0
+"""How long a Ray's GCS port may take to accept a connection before it counts as absent."""
 
 
 @contextmanager
@@ -81,17 +85,47 @@ def start_local_ray(num_cpus: float, **init_kwargs: Any) -> str:
 def join_ray(address: str, **init_kwargs: Any) -> None:
     """``ray.init(address=...)``, also for a loopback-only Ray that ``start_local_ray`` started.
 
+    Raises:
+        RayNotFoundError: no Ray runs there (``find_ray``), before ``ray.init`` is asked.
+    """
+    address = find_ray(address)
+    with _single_node_addresses() if _loopback_only(address) else nullcontext():
+        ray.init(address=address, **init_kwargs)
+
+
+def find_ray(address: str) -> str:
+    """The address of the Ray that ``join_ray(address)`` joins, checked to answer.
+
     ``"auto"`` is looked up as Ray does (``RAY_ADDRESS``, then the latest cluster on this machine)
-    with the switch on, so that a loopback address found there stays loopback.
+    with the switch on, so that a loopback address found there stays loopback. Where none runs,
+    ``ray.init`` raises a ConnectionError with a traceback, and for a port nothing listens on it
+    waits about a minute: this says so in one line instead (a ``ray://`` client address is left
+    to Ray).
+
+    Raises:
+        RayNotFoundError: ``"auto"`` found no Ray, or nothing accepts a connection at the
+            address's port.
     """
     if address == "auto":
         services = getattr(getattr(ray, "_private", None), "services", None)
         lookup = getattr(services, "canonicalize_bootstrap_address", None)
-        if lookup is not None:
+        if lookup is None:
+            return address  # another Ray version: ray.init looks it up itself
+        try:
             with _single_node_addresses():
                 address = lookup(address) or address
-    with _single_node_addresses() if _loopback_only(address) else nullcontext():
-        ray.init(address=address, **init_kwargs)
+        except ConnectionError:
+            raise RayNotFoundError(
+                "no Ray runs on this machine (and RAY_ADDRESS is unset)"
+            ) from None
+    host, _, port = address.rpartition(":")
+    if address.startswith("ray://") or not port.isdigit():
+        return address
+    try:
+        with socket.create_connection((host.strip("[]"), int(port)), timeout=_PROBE_S):
+            return address
+    except OSError:
+        raise RayNotFoundError(f"no Ray answers at {address}") from None
 
 
 def _loopback_only(address: str) -> bool:

@@ -9,7 +9,7 @@ Ray mechanisms used, and why:
   a give-up limit and a readiness check before the new address is handed out, which Ray's
   automatic restart does not give; the supervisor ``ray.kill``s and re-creates them instead.
 * **Named actors** (namespace ``robogym-ray``): the supervisor and each real robot can be found
-  from any driver (``SupervisorServerProvider``, ``robogym-ray resume NAME``).
+  from any driver (``SupervisorServerProvider``, ``robogym-ray resume-robot NAME``).
 * **Real-robot actors have ``max_restarts=0``** and are never restarted by anything.
 * Fractional ``num_cpus`` everywhere: these actors mostly wait on sockets.
 * **The learner actor has ``max_restarts``**: Ray re-runs its constructor after a crash, which

@@ -1,11 +1,12 @@
-"""``robogym-ray resume NAME``: an operator resumes a paused real robot on the running cluster."""
+"""``robogym-ray resume-robot NAME``: an operator resumes a paused real robot on the running
+cluster (a training's Ray). A sweep is resumed by ``robogym-ray sweep --resume NAME``."""
 
 from __future__ import annotations
 
 import argparse
 import sys
 
-from robogym_ray.errors import ConfigError
+from robogym_ray.errors import ConfigError, RayNotFoundError
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -26,9 +27,17 @@ def run(args: argparse.Namespace) -> int:
     from robogym_ray.distributed.remote import NAMESPACE, get_real_robot
 
     if not args.name.strip():
-        raise ConfigError("resume NAME: empty; name the real robot (its actor's name)")
+        raise ConfigError("resume-robot NAME: empty; name the real robot (its actor's name)")
     check_ray_address(args.ray_address, "--ray-address")  # before Ray is asked to join it
-    join_ray(args.ray_address, namespace=NAMESPACE, logging_level="ERROR")
+    try:
+        join_ray(args.ray_address, namespace=NAMESPACE, logging_level="ERROR")
+    except RayNotFoundError as exc:
+        # Said in one line, and the user may have meant a sweep: its command is named too.
+        raise RayNotFoundError(
+            f"--ray-address {args.ray_address}: {exc}; resume-robot resumes a paused real robot "
+            f"of a running training, a sweep resumes with `robogym-ray sweep --resume "
+            f"{args.name} --storage DIR`"
+        ) from None
     try:
         robot = get_real_robot(args.name)
     except ValueError:

@@ -4,8 +4,9 @@ Somebody else runs the robot server (ours with ``--real-time``, or robo-gym's RO
 class only connects to it. Unlike a simulation, a robot that failed may be in an unknown physical
 state, so nothing here restarts or resets it: on any error or emergency stop it marks itself
 **paused** and refuses every command until an operator calls ``resume()`` (from the CLI:
-``robogym-ray resume NAME``), which first checks that the server answers again. Other robots and
-simulations are unaffected. Every action passes a ``SafetyFilter`` (see ``realrobot/safety.py``).
+``robogym-ray resume-robot NAME``), which first checks that the server answers again. Other
+robots and simulations are unaffected. Every action passes a ``SafetyFilter`` (see
+``realrobot/safety.py``).
 """
 
 from __future__ import annotations
@@ -44,7 +45,7 @@ class RealRobot:
     """Gatekeeper of one real robot's server.
 
     Args:
-        name: the robot's name (the Ray actor's name; what ``robogym-ray resume`` takes).
+        name: the robot's name (the Ray actor's name; what ``robogym-ray resume-robot`` takes).
         address: ``host:port`` of its robot server.
         safety: limits every action must respect.
         deadlines: per-RPC deadlines (robo-gym's by default: real robots are slow).
@@ -192,7 +193,7 @@ class RealRobot:
             if self.paused:
                 raise RobotPausedError(
                     f"robot {self.name!r} is paused ({self.pause_reason}); {rpc} not sent; "
-                    f"an operator must run `robogym-ray resume {self.name}`",
+                    f"an operator must run `robogym-ray resume-robot {self.name}`",
                     address=self.address,
                     cause="paused",
                 )

@@ -136,7 +136,7 @@ def test_paused_robot_stays_paused_until_resumed_and_is_never_restarted(
             _remote(robot.send_action, [float("inf"), 0.0])
 
         _remote(robot.emergency_stop, "operator pressed e-stop")
-        with pytest.raises(RobotPausedError, match="resume mir-real"):
+        with pytest.raises(RobotPausedError, match="resume-robot mir-real"):
             _remote(robot.send_action, [0.1, 0.0])
         time.sleep(1.0)  # several supervisor probe periods: nothing un-pauses or restarts it
         [listed] = _remote(supervisor.real_robots)
@@ -174,7 +174,8 @@ def test_server_error_pauses_and_operator_resumes_from_the_cli(
     try:
         gcs = ray.get_runtime_context().gcs_address
         out = subprocess.run(
-            [sys.executable, "-m", "robogym_ray.cli", "resume", "mir-cli", "--ray-address", gcs],
+            [sys.executable, "-m", "robogym_ray.cli", "resume-robot", "mir-cli"]
+            + ["--ray-address", gcs],
             capture_output=True,
             text=True,
             timeout=60,
