@@ -307,11 +307,31 @@ def write_marker(storage: RunStorage, name: str, data: bytes, what: str) -> None
 
 
 def check_writable(storage: RunStorage, what: str = "storage") -> None:
-    """ConfigError unless a file can be written under ``storage`` (one is written and removed
-    again: no run folder is made)."""
+    """ConfigError unless a file can be written under ``storage``: one is written and removed
+    again, with the folders writing it made, so that a run that a later check refuses leaves
+    nothing behind."""
+    made = _outermost_missing(storage.path) if storage.is_local else None
     name = f"{STORAGE_MARKER}-{os.getpid()}"
     write_marker(storage, name, b"", what)
     storage.delete(name)
+    if made is not None:
+        for folder in (storage.path, *storage.path.parents):
+            try:
+                folder.rmdir()  # only an empty one: nothing another writer put there
+            except OSError:
+                break
+            if folder == made:
+                break
+
+
+def _outermost_missing(path: Path) -> Path | None:
+    """The outermost folder on ``path`` that does not exist yet (None: ``path`` exists)."""
+    missing = None
+    for folder in (path, *path.parents):
+        if folder.exists():
+            return missing
+        missing = folder
+    return missing
 
 
 def local_file(location: str | os.PathLike, what: str = "file") -> str:

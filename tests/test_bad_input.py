@@ -18,7 +18,9 @@ from pathlib import Path
 import pytest
 import torch
 
+import robogym_ray
 from robogym_ray.cli import main
+from robogym_ray.errors import ConfigError
 from robogym_ray.learner.checkpoint import replay_path
 from robogym_ray.learner.config import D4PGConfig
 from robogym_ray.learner.learner import D4PGLearner
@@ -44,8 +46,10 @@ def fails(capfd: pytest.CaptureFixture, *argv: str) -> str:
 
 
 def train_fails(capfd: pytest.CaptureFixture, logdir: Path, *argv: str) -> str:
+    existed = logdir.exists()
     line = fails(capfd, "train", "--logdir", str(logdir), "--total-steps", "10", *argv)
     assert not logdir.exists() or not any(logdir.iterdir())  # no run directory
+    assert existed or not logdir.exists()  # nor the run root the storage check wrote in
     return line
 
 
@@ -208,7 +212,8 @@ def test_a_good_init_from_passes_the_check(tmp_path: Path) -> None:
             "train.real_robot = '127.0.0.1:50051'; expected a list of strings",
         ),
         ("emulation", {"latency_ticks": "2"}, "emulation.latency_ticks = '2'; expected an"),
-        ("train", {"max_wall_s": None, "total_steps": None}, "train.total_steps = None"),
+        # null is a step total no longer: with max_wall_s it means no step cap (test_help.py)
+        ("train", {"max_wall_s": None, "total_steps": "3000"}, "train.total_steps = '3000'"),
     ],
 )
 def test_config_values_of_the_wrong_type(
@@ -348,3 +353,18 @@ def test_a_storage_that_cannot_be_written_is_refused_before_ray(
     assert line == "error: --storage /proc/x: cannot write there (no such file or directory)"
     line = train_fails(capfd, tmp_path / "runs", "--task", "pendulum", "--logdir", "/proc/x")
     assert line == "error: --logdir /proc/x: cannot write there (no such file or directory)"
+
+
+def test_a_run_refused_after_the_storage_check_leaves_no_folder(
+    tmp_path: Path, capfd: pytest.CaptureFixture
+) -> None:
+    """The storage check writes a file at the run root, making the folders it needs; a check
+    after it that refuses the run (networks torch cannot make) leaves none of them behind."""
+    config = tmp_path / "bad.json"
+    config.write_text(json.dumps({"train": {"task": "pendulum"}, "d4pg": {"policy_hidden": [-5]}}))
+    logdir = tmp_path / "new" / "runs"
+    line = fails(capfd, "train", "--logdir", str(logdir), "--config", str(config))
+    assert line.startswith("error: d4pg: no networks of policy_hidden=(-5,)")
+    with pytest.raises(ConfigError, match="no networks"):
+        robogym_ray.train(config, logdir=str(logdir))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.json"]
