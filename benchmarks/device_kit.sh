@@ -1,21 +1,24 @@
 #!/usr/bin/env bash
 # A kit of wheels for a GPU node that has torch and no network, so that a training runs there.
 #
-#   bash benchmarks/device_kit.sh               here, with pip's registry and a python3.12 (on
-#                                               this workplace: PYENV_VERSION=3.12.1): builds
+#   bash benchmarks/device_kit.sh               here, with pip's registry and a python3.12 (with
+#                                               pyenv: PYENV_VERSION=3.12.1): builds
 #                                               .device-kit/kit.tar.xz (git-ignored) and prints its
-#                                               size beside the working tree's
+#                                               size beside the working tree's; the zip and
+#                                               metadata work is benchmarks/device_kit.py
 #   bash benchmarks/device_kit.sh install DIR   on the node, from the checkout's root: installs the
 #                                               kit into DIR with pip --no-index (no network), then
 #                                               imports robogym_ray, ray, pybullet and gymnasium
 #
 # then `export PYTHONPATH=DIR:$PWD` (the checkout is not installed; DIR goes first, so the kit's
-# grpcio and protobuf win over the node's). The node (this workplace's device machines): CPython
-# 3.12 on manylinux x86-64 with torch, numpy, grpcio, protobuf, tensorboard, pyarrow, scipy, ...
-# (NODE_HAS below), and no ray, pybullet, gymnasium nor jsonschema.
+# grpcio and protobuf win over the node's). The node (as the H100 nodes of 2026-11-26 and
+# 2026-11-27 were, docs/benchmarks.md 15e and 16): CPython 3.12 on manylinux x86-64 with torch,
+# numpy, grpcio, protobuf, tensorboard, pyarrow, scipy, ... (NODE_HAS below), and no ray,
+# pybullet, gymnasium nor jsonschema.
 #
-# Why a kit and not wheels as they come: one device call carries the working tree and the paths it
-# names, 64 MiB in all; ray's wheel alone is 79 MB and pybullet has no wheel for Python 3.12. So:
+# Why a kit and not wheels as they come: what goes to the node with one command is the working
+# tree and the paths it names, 64 MiB in all; ray's wheel alone is 79 MB and pybullet has no wheel
+# for Python 3.12. So:
 #   - ray's wheel repacked without its Java jar (32 MB zipped) and the dashboard's source maps, its
 #     shared objects and its gcs_server and raylet stripped (their symbols are most of their size);
 #   - pybullet built here from its sdist with python3.12, without pybullet_data's files (the
@@ -77,112 +80,6 @@ fi
   exit 2
 }
 
-# The zip and metadata work, in the build venv's Python (it has `packaging`).
-read -r -d '' HELPER <<'PY' || true
-import base64, csv, email.parser, fnmatch, hashlib, io, os, subprocess, sys, tempfile, tomllib
-import zipfile
-from pathlib import Path
-
-from packaging.markers import Marker
-from packaging.requirements import Requirement
-from packaging.utils import canonicalize_name
-
-
-def locked(lock, *names):
-    """Prints NAME==VERSION from the lock for each name, the line whose marker holds here."""
-    pins = {}
-    for line in Path(lock).read_text().splitlines():
-        if not line or line[0] in "# ":
-            continue
-        req, _, marker = line.partition(";")
-        name, _, version = req.strip().partition("==")
-        if not marker.strip() or Marker(marker).evaluate():
-            pins[canonicalize_name(name)] = f"{name}=={version}"
-    for name in names:
-        if canonicalize_name(name) not in pins:
-            sys.exit(f"{name}: not in {lock}")
-        print(pins[canonicalize_name(name)])
-
-
-def stripped(data):
-    with tempfile.NamedTemporaryFile() as f:
-        f.write(data)
-        f.flush()
-        subprocess.run(["strip", "--strip-unneeded", f.name], check=True)
-        return Path(f.name).read_bytes()
-
-
-def repack(src, out_dir, *drop):
-    """Writes wheel SRC into OUT_DIR: members matching a DROP glob left out, ELF files stripped,
-    stored uncompressed, RECORD rewritten (hashes and sizes of what is in it now)."""
-    dst = Path(out_dir) / Path(src).name
-    rows, dropped, saved = [], 0, 0
-    with zipfile.ZipFile(src) as zin, zipfile.ZipFile(f"{dst}.part", "w") as zout:
-        record = next(n for n in zin.namelist() if n.endswith(".dist-info/RECORD"))
-        for info in zin.infolist():
-            name = info.filename
-            if name == record or name.endswith("/"):
-                continue
-            if any(fnmatch.fnmatch(name, pattern) for pattern in drop):
-                dropped += info.file_size
-                continue
-            data = zin.read(info)
-            if data[:4] == b"\x7fELF":
-                new = stripped(data)
-                saved += len(data) - len(new)
-                data = new
-            member = zipfile.ZipInfo(name, info.date_time)
-            member.external_attr = info.external_attr  # the executables' modes (gcs_server)
-            zout.writestr(member, data)
-            digest = base64.urlsafe_b64encode(hashlib.sha256(data).digest()).rstrip(b"=")
-            rows.append((name, f"sha256={digest.decode()}", len(data)))
-        rows.append((record, "", ""))
-        text = io.StringIO()
-        csv.writer(text, lineterminator="\n").writerows(rows)
-        zout.writestr(zipfile.ZipInfo(record, (1980, 1, 1, 0, 0, 0)), text.getvalue())
-    os.replace(f"{dst}.part", dst)
-    print(f"  {dst.name}: {dropped / 1e6:.1f} MB dropped, {saved / 1e6:.1f} MB stripped")
-
-
-def check(stage, pyproject, node_has, left_out):
-    """Fails unless each requirement of the project and of the kit's wheels (markers taken for
-    this interpreter: CPython 3.12 on Linux; a wheel's extras those the project names, less
-    LEFT_OUT) is in the kit or on the node."""
-    project = [Requirement(r) for r in tomllib.loads(Path(pyproject).read_text())["project"][
-        "dependencies"]]
-    left = {canonicalize_name(r.name): r.extras for r in map(Requirement, left_out.split())}
-    extras = {canonicalize_name(r.name): r.extras - left.get(canonicalize_name(r.name), set())
-              for r in project}
-    kit, needs = set(), [("robogym-ray", {""}, r) for r in project]
-    for wheel in sorted(Path(stage).glob("*.whl")):
-        with zipfile.ZipFile(wheel) as z:
-            meta = next(n for n in z.namelist() if n.endswith(".dist-info/METADATA"))
-            msg = email.parser.Parser().parsestr(z.read(meta).decode())
-        name = canonicalize_name(msg["Name"])
-        kit.add(name)
-        wanted = {""} | extras.get(name, set())
-        needs += [(msg["Name"], wanted, Requirement(r)) for r in msg.get_all("Requires-Dist") or []]
-    applying = [(who, r) for who, wanted, r in needs
-                if r.marker is None or any(r.marker.evaluate({"extra": e}) for e in wanted)]
-    have = kit | {canonicalize_name(n) for n in node_has.split()}
-    missing = {f"{r.name} (for {who})" for who, r in applying
-               if canonicalize_name(r.name) not in have}
-    if missing:
-        sys.exit("neither in the kit nor on the node: " + ", ".join(sorted(missing)))
-    print(f"requirements: all {len(applying)} are in the kit or on the node; left out: {left_out}")
-
-
-def tree(root):
-    """The working tree's bytes as a device call counts them: tracked and untracked-not-ignored."""
-    names = subprocess.run(["git", "-C", root, "ls-files", "-co", "--exclude-standard", "-z"],
-                           check=True, capture_output=True).stdout.split(b"\0")
-    paths = [os.path.join(root.encode(), n) for n in names if n]
-    print(sum(os.lstat(p).st_size for p in paths if os.path.lexists(p)))
-
-
-{"locked": locked, "repack": repack, "check": check, "tree": tree}[sys.argv[1]](*sys.argv[2:])
-PY
-
 py312=${KIT_PYTHON:-python3.12}
 cache=${XDG_CACHE_HOME:-$HOME/.cache}/robogym-ray-kit
 venv=$cache/venv-py312
@@ -197,7 +94,9 @@ bpy=$venv/bin/python
   echo "$py312 is not Python 3.12: set KIT_PYTHON" >&2
   exit 2
 }
-helper() { "$bpy" -c "$HELPER" "$@"; }
+# The zip and metadata work (benchmarks/device_kit.py), in the build venv's Python: it has
+# `packaging`.
+helper() { "$bpy" "$root/benchmarks/device_kit.py" "$@"; }
 
 # NAME==VERSION -> its cp312 manylinux x86-64 wheel, downloaded once into the cache.
 fetch() {

@@ -2,8 +2,9 @@
 # The GPU node's figures (docs/scaling.md says how they are read; docs/benchmarks.md has them).
 #
 #   bash benchmarks/gpu_node.sh throughput OUT   the node's first call, ~5.5 minutes: the learner's
-#                                             step paths side by side (today's compiled step and
-#                                             the whole step in one CUDA graph, alternating), then
+#                                             step paths side by side (the host-stepped step with
+#                                             compiled losses and the whole step in one CUDA graph,
+#                                             alternating), then
 #                                             30-s navigation trainings with 2, 4, 8 and 14 workers
 #                                             x 4 envs and the GPU learner (batch 128 per worker),
 #                                             and 8 workers with the CPU learner beside.
@@ -28,7 +29,8 @@
 # import fails (a warm node keeps it for the next call). The repository's root goes on
 # PYTHONPATH: the project is not installed there. Every part writes one JSON line per figure as
 # it comes and its errors to OUT/errors.log, each step with its own time limit, and the steps
-# after a failed one still run (a device lease allows one try).
+# after a failed one still run (a node's time is short: one failure must not cost the figures
+# after it).
 #
 # Rehearse here before spending device time (no GPU, every part and switch exercised, short):
 #   GPU_NODE_DEVICE=cpu GPU_NODE_SECONDS=1 GPU_NODE_TRAIN_S=15 GPU_NODE_WORKERS="1 2" \
@@ -63,9 +65,9 @@ export PYTHONPATH=$root${PYTHONPATH:+:$PYTHONPATH}
   echo "cores $(nproc), $(grep -m1 'model name' /proc/cpuinfo), load $(cut -d' ' -f1-3 /proc/loadavg)"
 } | tee "$out/device.txt"
 
-# One part of the learner's figures: its own time limit, its errors kept, and the parts after
-# it run whatever became of it (a device lease allows one try).
-part() {
+# One step of the learner's figures: its own time limit, its errors kept, and the steps after
+# it run whatever became of it (as above).
+measure() {
   local limit=$1 name=$2
   shift 2
   echo "== $name" | tee -a "$out/errors.log"
@@ -74,21 +76,21 @@ part() {
     echo "== $name: stopped, exit ${PIPESTATUS[0]}" | tee -a "$out/errors.log"
 }
 all=(--batches 256 1024 4096 16384 --seconds "$seconds")
-# The GPU path's switches, one part each: blocks of SGD steps, compiled, compiled with bf16.
+# The GPU path's switches, one measure each: blocks of SGD steps, compiled, compiled with bf16.
 switches() {
-  part 50 "eager, 8 SGD steps per sample" --device "$device" --batches 1024 4096 16384 \
+  measure 50 "eager, 8 SGD steps per sample" --device "$device" --batches 1024 4096 16384 \
     --seconds "$seconds" --sgd-steps 8
-  part 180 compiled --device "$device" "${all[@]}" --warmup 30 --compile reduce-overhead
-  part 110 "compiled, bf16, 8 SGD steps" --device "$device" --batches 4096 16384 \
+  measure 180 compiled --device "$device" "${all[@]}" --warmup 30 --compile reduce-overhead
+  measure 110 "compiled, bf16, 8 SGD steps" --device "$device" --batches 4096 16384 \
     --seconds "$seconds" --warmup 30 --compile reduce-overhead --bf16 --sgd-steps 8
 }
 case "$part" in
 learner)
-  part 75 eager --device "$device" "${all[@]}"
+  measure 75 eager --device "$device" "${all[@]}"
   # The CPU learner on this node's cores: its threads beyond the 2 cores of the machine
   # where the model's CPU figures were measured.
-  part 80 "CPU threads" --device cpu --batches 1024 --threads 1 2 4 8 14 --seconds 4
-  part 60 "CPU threads, batch 4096" --device cpu --batches 4096 --threads 1 8 14 --seconds 4
+  measure 80 "CPU threads" --device cpu --batches 1024 --threads 1 2 4 8 14 --seconds 4
+  measure 60 "CPU threads, batch 4096" --device cpu --batches 4096 --threads 1 8 14 --seconds 4
   switches
   ;;
 versus)
@@ -96,7 +98,7 @@ versus)
   other=${3:?the other checkout: a folder holding the robogym_ray/ of another commit}
   for round in 1 2; do
     for tree in "$other" "$root"; do
-      PYTHONPATH=$tree:$PYTHONPATH part 60 "eager, $tree, round $round" --device "$device" \
+      PYTHONPATH=$tree:$PYTHONPATH measure 60 "eager, $tree, round $round" --device "$device" \
         "${all[@]}"
     done
   done
@@ -104,8 +106,8 @@ versus)
   ;;
 profile)
   # Where a step's time goes (wall, kernel and host time per step), eager and compiled.
-  part 50 "eager, profiled" --device "$device" --batches 1024 --seconds "$seconds" --profile 50
-  part 150 "compiled, profiled" --device "$device" "${all[@]}" --warmup 30 \
+  measure 50 "eager, profiled" --device "$device" --batches 1024 --seconds "$seconds" --profile 50
+  measure 150 "compiled, profiled" --device "$device" "${all[@]}" --warmup 30 \
     --compile reduce-overhead --profile 50
   ;;
 throughput)
@@ -116,14 +118,15 @@ throughput)
     tests/learner/test_whole_step.py) >"$out/pytest.txt" 2>&1 ||
     echo "== tests: failed (pytest.txt)" | tee -a "$out/errors.log"
   tail -3 "$out/pytest.txt"
-  # Today's compiled step and the whole step, side by side at batch 256 (the goal's) and at the
-  # node recipe's 1,792, in calls of 4 steps (what a coupled insert owes at 14 workers).
+  # The host-stepped step with compiled losses and the whole step, side by side at batch 256 (the
+  # goal's) and at the node recipe's 1,792, in calls of 4 steps (what a coupled insert owes at 14
+  # workers).
   echo "== learner paths" | tee -a "$out/errors.log"
   timeout 150 "$py" "$root/benchmarks/learner_capacity.py" paths --paths compiled whole \
     --device "$device" --batches 256 1792 --rounds 3 --seconds "$seconds" --warmup 30 \
     --call-steps 4 2>>"$out/errors.log" | tee -a "$out/learner.jsonl" ||
     echo "== learner paths: stopped, exit ${PIPESTATUS[0]}" | tee -a "$out/errors.log"
-  # The trainings take the whole step where it ran above, else today's compiled step.
+  # The trainings take the whole step where it ran above, else the compiled losses.
   if grep -q '"path": "whole", "round": 0' "$out/learner.jsonl" 2>/dev/null; then
     gpu_d4pg='{"whole_step": "on"}'
   else
