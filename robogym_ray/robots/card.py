@@ -152,7 +152,7 @@ class LaunchFamily:
 
     ``roslaunch <package> <launch_file> ... [<model_argument>:=<model_value>] ...``: a card answers
     a command when the launch file matches and, if ``model_argument`` is set, that argument's
-    value equals ``model_value``.
+    value equals ``model_value`` (or the command leaves it out and the card is the ``default``).
     """
 
     launch_file: str
@@ -162,6 +162,10 @@ class LaunchFamily:
     the launch file serves one robot only."""
     model_value: str | None = None
     """The ``model_argument`` value of this card (``ur5``)."""
+    default: bool = False
+    """This card answers a command that leaves ``model_argument`` out (the launch file's
+    default model: the Panda for ``panda_robot_server.launch``, whose ``robot`` argument names
+    the Franka arm as franka_ros's launch files do, ``panda`` or ``fr3``)."""
 
 
 @dataclass(frozen=True)

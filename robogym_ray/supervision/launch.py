@@ -83,13 +83,14 @@ def parse_launch_cmd(cmd: str) -> LaunchSpec:
 
 
 def _pick_model(family: list[RobotCard], args: Mapping[str, str]) -> str:
-    """The card of ``family`` whose model argument ``args`` names (or the family's only card)."""
+    """The card of ``family`` whose model argument ``args`` names (or the family's only card,
+    or its default card when ``args`` leaves the argument out)."""
     argument = family[0].launch.model_argument
     if argument is None:
         return family[0].name
     value = args.get(argument, "")
     for card in family:
-        if card.launch.model_value == value:
+        if card.launch.model_value == value or (argument not in args and card.launch.default):
             return card.name
     known = ", ".join(str(c.launch.model_value) for c in family)
     raise UnknownRobotError(

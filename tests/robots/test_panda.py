@@ -254,7 +254,8 @@ def test_card_matches_the_model():
     assert CARD.state.length == 29 and CARD.state.keys == RS_MODE_KEYS["only_robot"]
     assert CARD.geometry.dh == tuple(v for row in DH for v in row) + (FLANGE_D,)
     assert CARD.launch.launch_file == "panda_robot_server.launch"
-    assert CARD.launch.model_argument is None
+    # franka_ros's ``robot`` argument picks the arm; robo-gym's commands leave it out: the Panda.
+    assert (CARD.launch.model_argument, CARD.launch.default) == ("robot", True)
     cmd = "roslaunch panda_robot_server panda_robot_server.launch         rs_mode:=1object"
     spec = parse_launch_cmd(cmd)
     assert (spec.robot, spec.options) == ("panda", {"rs_mode": "1object"})

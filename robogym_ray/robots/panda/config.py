@@ -1,5 +1,5 @@
-"""Configuration of the simulated Panda and its parsing from ``panda_robot_server.launch``
-arguments (robo-gym-robot-servers 2.1.0)."""
+"""Configuration of the simulated Franka arm (Panda or FR3) and its parsing from
+``panda_robot_server.launch`` arguments (robo-gym-robot-servers 2.1.0)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 from robogym_ray.errors import ConfigError, UnknownRobotError
-from robogym_ray.robots.panda.card import CARD
+from robogym_ray.robots.panda.model import EE_FRAMES, LABELS, LIMITS, ArmLimits
 from robogym_ray.robots.panda.state import RS_MODES
 from robogym_ray.robots.scenes import SCENES, WORLDS
 from robogym_ray.robots.validation import (
@@ -61,8 +61,11 @@ _HANDLED = frozenset(
 
 @dataclass(frozen=True)
 class PandaConfig:
-    """One simulated Panda (the launch arguments we honour; defaults are the launch file's)."""
+    """One simulated Franka arm (the launch arguments we honour; defaults are the launch
+    file's)."""
 
+    model: str = "panda"
+    """panda | fr3: the arm, whose joint limits (``model.LIMITS``) the robot keeps."""
     scene: str = "empty"
     rs_mode: str = "only_robot"
     """only_robot | 1object (adds the target object's pose)."""
@@ -71,25 +74,37 @@ class PandaConfig:
     reference_frame: str = "base"
     ee_frame: str = "panda_hand"
     max_velocity_scale_factor: float = 1.0
-    """Joint speed limit = factor x the published limit."""
+    """Joint speed limit = factor x the model's published limit."""
     action_cycle: float = 1.0 / 25.0
     """Seconds per action (1 / action_cycle_rate)."""
 
     def __post_init__(self) -> None:
         for name, value, known in (
+            ("model", self.model, LIMITS),
             ("scene", self.scene, SCENES),
             ("rs_mode", self.rs_mode, RS_MODES),
             ("action_mode", self.action_mode, ACTION_MODES),
             ("reference_frame", self.reference_frame, REFERENCE_FRAMES),
-            ("ee_frame", self.ee_frame, CARD.geometry.ee_frames),
+            ("ee_frame", self.ee_frame, EE_FRAMES),
         ):
             if value not in known:
-                error = UnknownRobotError if name == "scene" else ConfigError
-                raise error(f"unknown Panda {name} {quote(value)}; known: {', '.join(known)}")
+                error = UnknownRobotError if name in ("model", "scene") else ConfigError
+                label = LABELS.get(self.model, "Panda")
+                raise error(f"unknown {label} {name} {quote(value)}; known: {', '.join(known)}")
         for name in ("max_velocity_scale_factor", "action_cycle"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ConfigError(f"{name} must be a positive finite number, got {value!r}")
+
+    @property
+    def limits(self) -> ArmLimits:
+        """The model's joint limits."""
+        return LIMITS[self.model]
+
+    @property
+    def label(self) -> str:
+        """The model's name in messages (``Panda``, ``FR3``)."""
+        return LABELS[self.model]
 
     @property
     def actuation_cycle(self) -> float:
@@ -100,17 +115,20 @@ class PandaConfig:
 def parse_options(model: str, scene: str | None, options: Mapping[str, str]) -> PandaConfig:
     """A PandaConfig from launch-argument options; unknown options or values raise ConfigError.
 
-    ``model`` is the registry name (``panda``); the signature is the registry's option parser's.
+    ``model`` is the registry name (``panda`` or ``fr3``); the signature is the registry's
+    option parser's.
     """
+    label = LABELS.get(model, "Panda")
     opts = dict(options)
-    check_option_names("Panda", opts, _HANDLED | IGNORED_OPTIONS)
+    check_option_names(label, opts, _HANDLED | IGNORED_OPTIONS)
     if parse_option_bool("real_robot", opts.get("real_robot", "false")):
-        raise ConfigError("option real_robot=true is not supported by the simulated Panda")
+        raise ConfigError(f"option real_robot=true is not supported by the simulated {label}")
     world_name = opts.get("world_name")
     kwargs: dict[str, object] = {
+        "model": model,
         "scene": resolve_scene(
-            "Panda", scene, world_name, SCENES, PANDA_WORLDS, PANDA_WORLDS[DEFAULT_WORLD]
-        )
+            label, scene, world_name, SCENES, PANDA_WORLDS, PANDA_WORLDS[DEFAULT_WORLD]
+        ),
     }
     for key in ("rs_mode", "action_mode", "reference_frame", "ee_frame"):
         if key in opts:

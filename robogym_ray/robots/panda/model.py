@@ -1,27 +1,40 @@
-"""Franka Emika Panda: published parameters, numpy forward kinematics, and the URDF we load.
+"""Franka Emika Panda and Franka Research 3 (FR3): published parameters, numpy forward
+kinematics, and the URDF we load.
 
-Sources (all published by Franka Emika; nothing is downloaded at run time):
+The FR3 is a model of this folder rather than a folder of its own: Franka publishes one
+Denavit-Hartenberg table for both arms, so kinematics, frames, collision shapes, state layout and
+launch options are the Panda's, and only the joint limits (``LIMITS``) differ.
+
+Sources (all published by Franka; nothing is downloaded at run time):
 
 * Kinematics: the Denavit-Hartenberg table of "Robot and interface specifications"
-  (frankaemika.github.io/docs/control_parameters.html), in Craig's (modified) convention, where
-  the transform from link i-1 to link i is ``Rx(alpha) Tx(a) Rz(theta_i) Tz(d)``; the flange
-  (``panda_link8``) is ``d = 0.107`` m beyond joint 7, and ``panda_hand`` is the flange turned
-  -pi/4 about z (the hand's mounting).
-* Limits: the joint position and velocity limits of the same page (also robo-gym 2.1.0's
-  ``panda.yaml``).
+  (frankaemika.github.io/docs/control_parameters.html; frankarobotics.github.io/docs,
+  "Control Interface Specification and Robot Limits", for the FR3), in Craig's (modified)
+  convention, where the transform from link i-1 to link i is ``Rx(alpha) Tx(a) Rz(theta_i)
+  Tz(d)``; the flange (``panda_link8``) is ``d = 0.107`` m beyond joint 7, and ``panda_hand`` is
+  the flange turned -pi/4 about z (the hand's mounting).
+* Limits: the joint position and velocity limits of the same pages, "Limits for Panda" (also
+  robo-gym 2.1.0's ``panda.yaml``) and "Limits for Franka Research 3" (``q_max`` / ``q_min``,
+  ``dq_max``). Franka's docs also give the FR3 tighter "rectangular" joint limits, a box in
+  which every joint may move whatever the others do. ``FR3_RECTANGULAR`` is the tighter box of
+  franka_description's ``robots/fr3/joint_limits.yaml`` (commit 1ddff9b), taken from that file,
+  not from the docs' table. Nothing here uses it: the simulated FR3, its card and its envs use
+  ``q_min`` ... ``q_max``, the limits at which the robot aborts a motion.
 
 The URDF chain uses the franka_description names ``panda_link0`` ... ``panda_link8``,
-``panda_hand``, ``panda_joint1`` ... ``panda_joint7``; each joint's ``<origin>`` is the DH row
-folded into one translation and rotation. Collision geometry is a capsule or two per link, sized
-from the published outline drawing (links about 0.11-0.12 m across), so the usual poses are
-collision free and folding the hand into the arm or the arm into the ground collides. The hand
-and fingers (open, fixed) are collision shapes of ``panda_link8`` so that PyBullet's parent
-exclusion keeps them from touching link 7 all the time.
+``panda_hand``, ``panda_joint1`` ... ``panda_joint7`` for both models (franka_description calls
+the FR3's ``fr3_*``; keeping one set of names keeps one state layout and one set of envs); each
+joint's ``<origin>`` is the DH row folded into one translation and rotation. Collision geometry
+is a capsule or two per link, sized from the published outline drawing (links about 0.11-0.12 m
+across), so the usual poses are collision free and folding the hand into the arm or the arm into
+the ground collides. The hand and fingers (open, fixed) are collision shapes of ``panda_link8``
+so that PyBullet's parent exclusion keeps them from touching link 7 all the time.
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -49,13 +62,54 @@ HAND_YAW = -math.pi / 4
 
 EE_FRAMES: tuple[str, ...] = ("panda_hand", "panda_link8")
 """Frames the ``ee_frame`` launch argument may name, the launch file's default first."""
-LOWER = np.array([-2.8973, -1.7628, -2.8973, -3.0718, -2.8973, -0.0175, -2.8973])
-UPPER = np.array([2.8973, 1.7628, 2.8973, -0.0698, 2.8973, 3.7525, 2.8973])
-"""Joint position limits (rad)."""
-MAX_VELOCITY = np.array([2.1750, 2.1750, 2.1750, 2.1750, 2.6100, 2.6100, 2.6100])
-"""Joint velocity limits (rad/s)."""
+
+
+@dataclass(frozen=True, eq=False)
+class ArmLimits:
+    """One arm model's joint limits, joints 1-7, as read-only float arrays (sequences given to
+    the constructor are copied)."""
+
+    lower: np.ndarray
+    """Lowest joint positions (rad)."""
+    upper: np.ndarray
+    """Highest joint positions (rad)."""
+    velocity: np.ndarray
+    """Largest joint speeds (rad/s)."""
+
+    def __post_init__(self) -> None:
+        for name in ("lower", "upper", "velocity"):
+            array = np.array(getattr(self, name), dtype=np.float64).reshape(7)
+            array.flags.writeable = False  # shared by every robot and env: no one edits a limit
+            object.__setattr__(self, name, array)
+
+
+PANDA_LIMITS = ArmLimits(
+    lower=(-2.8973, -1.7628, -2.8973, -3.0718, -2.8973, -0.0175, -2.8973),
+    upper=(2.8973, 1.7628, 2.8973, -0.0698, 2.8973, 3.7525, 2.8973),
+    velocity=(2.1750, 2.1750, 2.1750, 2.1750, 2.6100, 2.6100, 2.6100),
+)
+"""The Panda ("Limits for Panda")."""
+FR3_LIMITS = ArmLimits(
+    lower=(-2.9007, -1.8361, -2.9007, -3.0770, -2.8763, 0.4398, -3.0508),
+    upper=(2.9007, 1.8361, 2.9007, -0.1169, 2.8763, 4.6216, 3.0508),
+    velocity=(2.62, 2.62, 2.62, 2.62, 5.26, 4.18, 5.26),
+)
+"""The FR3 ("Limits for Franka Research 3": ``q_min``, ``q_max``, ``dq_max``)."""
+FR3_RECTANGULAR = ArmLimits(
+    lower=(-2.7437, -1.7837, -2.9007, -3.0421, -2.8065, 0.5445, -3.0159),
+    upper=(2.7437, 1.7837, 2.9007, -0.1518, 2.8065, 4.5169, 3.0159),
+    velocity=(2.62, 2.62, 2.62, 2.62, 5.26, 4.18, 5.26),
+)
+"""The FR3's tighter box of joint positions in franka_description's ``robots/fr3/
+joint_limits.yaml`` (commit 1ddff9b); unused (see the module docstring)."""
+LIMITS: dict[str, ArmLimits] = {"panda": PANDA_LIMITS, "fr3": FR3_LIMITS}
+"""Registry name -> the model's limits: what the simulated arm, its card and its envs use."""
+LABELS: dict[str, str] = {"panda": "Panda", "fr3": "FR3"}
+"""Registry name -> the model's name in messages."""
+LOWER, UPPER, MAX_VELOCITY = PANDA_LIMITS.lower, PANDA_LIMITS.upper, PANDA_LIMITS.velocity
+"""The Panda's joint position (rad) and velocity (rad/s) limits, as arrays."""
 MAX_EFFORT = (87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0)
-"""Joint torque limits (N m), for the URDF only."""
+"""Joint torque limits (N m) of both models, for the URDF only."""
 READY = np.array([0.0, -math.pi / 4, 0.0, -3 * math.pi / 4, 0.0, math.pi / 2, math.pi / 4])
 """The 'ready' pose of franka_ros / libfranka's examples (hand pointing down)."""
 
@@ -126,7 +180,8 @@ CAPSULES: dict[str, list[Capsule]] = {
     "panda_link7": [(0.04, (0.0, 0.0, 0.0), (0.0, 0.0, 0.07))],
 }  # fmt: skip
 """Capsules per link. Link 5's stops 0.18 m below the wrist: the forearm tapers there and the
-hand passes beside it at q6 near 0 (the real arm's lower joint-6 limit, -0.0175 rad)."""
+hand passes beside it at q6 near 0 (the Panda's lower joint-6 limit, -0.0175 rad; the FR3's is
+0.4398 rad)."""
 HAND_BOXES: list[Box] = [
     ((0.02, 0.09, 0.03), (0.0, 0.0, 0.03), HAND_YAW),
     ((0.01, 0.01, 0.025), (0.0, 0.04, 0.08), HAND_YAW),
@@ -175,9 +230,11 @@ def _link_xml(name: str, mass: float, shapes: list[str]) -> str:
     return "\n".join([f'  <link name="{name}">', inertial, *shapes, "  </link>"])
 
 
-def urdf_text() -> str:
-    """The Panda (arm, hand, open fingers) as a URDF with franka_description's names."""
-    lines = ['<?xml version="1.0"?>', '<robot name="panda">']
+def urdf_text(model: str = "panda") -> str:
+    """The arm ``model`` (``LIMITS``: panda or fr3) with the hand and open fingers, as a URDF
+    with franka_description's Panda names; the models differ in their joint limits only."""
+    limits = LIMITS[model]
+    lines = ['<?xml version="1.0"?>', f'<robot name="{model}">']
     caps = {k: [_capsule_xml(*c) for c in v] for k, v in CAPSULES.items()}
     lines.append(_link_xml("panda_link0", MASSES[0], caps["panda_link0"]))
     parent = "panda_link0"
@@ -187,8 +244,8 @@ def urdf_text() -> str:
         lines.append(
             f'  <joint name="{JOINT_NAMES[i]}" type="revolute"><parent link="{parent}"/>'
             f'<child link="{link}"/><origin xyz="{_fmt(xyz)}" rpy="{roll:.17g} 0 0"/>'
-            f'<axis xyz="0 0 1"/><limit lower="{LOWER[i]}" upper="{UPPER[i]}" '
-            f'effort="{MAX_EFFORT[i]}" velocity="{MAX_VELOCITY[i]}"/></joint>'
+            f'<axis xyz="0 0 1"/><limit lower="{limits.lower[i]}" upper="{limits.upper[i]}" '
+            f'effort="{MAX_EFFORT[i]}" velocity="{limits.velocity[i]}"/></joint>'
         )
         lines.append(_link_xml(link, MASSES[i + 1], caps[link]))
         parent = link
@@ -206,6 +263,7 @@ def urdf_text() -> str:
     return "\n".join(lines) + "\n"
 
 
-def urdf_path() -> str:
-    """The Panda's URDF as a cached file PyBullet can load (``robots/urdf.py``)."""
-    return cached_urdf("panda", urdf_text())
+def urdf_path(model: str = "panda") -> str:
+    """``urdf_text(model)`` as a cached file PyBullet can load (``robots/urdf.py``), one per
+    model."""
+    return cached_urdf(model, urdf_text(model))

@@ -1,4 +1,5 @@
-"""The simulated Franka Emika Panda behind robo-gym-robot-servers 2.1.0's Panda contract.
+"""The simulated Franka Emika Panda behind robo-gym-robot-servers 2.1.0's Panda contract, and
+the Franka Research 3 (``fr3``) behind the same contract with its own joint limits.
 
 ========================  ==================================================================
 wire                      meaning
@@ -32,14 +33,7 @@ from robogym_ray.robots.base import StateRequest, StateSnapshot
 from robogym_ray.robots.command_handler import CommandHandlerConfig
 from robogym_ray.robots.panda.config import PandaConfig, parse_options
 from robogym_ray.robots.panda.controller import JointPositionController
-from robogym_ray.robots.panda.model import (
-    JOINT_NAMES,
-    LINK_NAMES,
-    LOWER,
-    MAX_VELOCITY,
-    UPPER,
-    urdf_path,
-)
+from robogym_ray.robots.panda.model import JOINT_NAMES, LINK_NAMES, urdf_path
 from robogym_ray.robots.panda.state import (
     ALL_KEYS,
     N_OBJECTS,
@@ -53,33 +47,36 @@ from robogym_ray.robots.scenes import SCENES, add_scene
 def make_panda(
     model: str, scene: str | None, seed: int | None, options: Mapping[str, str]
 ) -> PandaArm:
-    """Registry factory: a simulated Panda configured by launch-style ``options``."""
+    """Registry factory: a simulated Panda or FR3 (``model``) configured by launch-style
+    ``options``."""
     return PandaArm(parse_options(model, scene, options), seed=seed)
 
 
 class PandaArm(SimArm):
-    """One Panda (arm, hand, open fingers) and its scene in a PyBullet DIRECT world."""
-
-    name = "panda"
+    """One Franka arm (arm, hand, open fingers) and its scene in a PyBullet DIRECT world: the
+    Panda, or the FR3 (``config.model``), which differs in its joint limits only."""
 
     def __init__(self, config: PandaConfig, seed: int | None = None) -> None:
         self.config = config
+        self.name = config.model
+        self.limits = config.limits
         self.handler_config = CommandHandlerConfig(
             action_cycle=config.action_cycle, actuation_cycle=config.actuation_cycle
         )
         self.sensor_periods = {}
         self.groups = sensor_groups(config.rs_mode)
+        lower, upper = self.limits.lower, self.limits.upper
         controller = JointPositionController(
-            config.max_velocity_scale_factor * MAX_VELOCITY, LOWER, UPPER
+            config.max_velocity_scale_factor * self.limits.velocity, lower, upper
         )
-        controller.reset(np.clip(np.zeros(7), LOWER, UPPER))
+        controller.reset(np.clip(np.zeros(7), lower, upper))
         super().__init__(controller, N_OBJECTS[config.rs_mode], seed)
 
     # -- scene ----------------------------------------------------------------------------------
     def _build_scene(self) -> None:
         scene = SCENES[self.config.scene]
         add_scene(self._world, scene)
-        index = self._load_robot(urdf_path(), (0.0, 0.0, 0.0))
+        index = self._load_robot(urdf_path(self.config.model), (0.0, 0.0, 0.0))
         self._joint_ids = [index[n] for n in JOINT_NAMES]
         # Contact sensors: links 1-7 and the hand with its fingers (shapes of panda_link8).
         self._contact_links = frozenset(index[n] for n in (*LINK_NAMES, "panda_link8"))
@@ -91,18 +88,19 @@ class PandaArm(SimArm):
         a = np.asarray(action, dtype=np.float64).reshape(-1)
         if a.shape != (7,):
             raise InvalidActionError(
-                f"Panda action must have 7 values (joints 1-7, {self.config.action_mode}), "
-                f"got {a.size}"
+                f"{self.config.label} action must have 7 values (joints 1-7, "
+                f"{self.config.action_mode}), got {a.size}"
             )
+        lower, upper = self.limits.lower, self.limits.upper
         if self.config.action_mode == "abs_pos":
-            low, high = LOWER - LIMIT_TOLERANCE, UPPER + LIMIT_TOLERANCE
+            low, high = lower - LIMIT_TOLERANCE, upper + LIMIT_TOLERANCE
         else:
-            high = UPPER - LOWER + LIMIT_TOLERANCE
+            high = upper - lower + LIMIT_TOLERANCE
             low = -high
         for i in range(7):
             if not (np.isfinite(a[i]) and low[i] <= a[i] <= high[i]):
                 raise InvalidActionError(
-                    f"action[{i}] ({JOINT_NAMES[i]}, {self.config.action_mode}) = {a[i]!r} "
+                    f"action[{i}] ({JOINT_NAMES[i]}, {self.config.action_mode}) = {float(a[i])!r} "
                     f"is outside [{low[i] + LIMIT_TOLERANCE:.6f}, "
                     f"{high[i] - LIMIT_TOLERANCE:.6f}] rad"
                 )
@@ -123,19 +121,21 @@ class PandaArm(SimArm):
     # -- state ----------------------------------------------------------------------------------
     def _joint_goal(self, request: StateRequest) -> np.ndarray:
         """The validated joint goal (joints 1-7) of a SetState: all seven keys, within limits."""
-        check_state_keys("Panda", request.state_dict, ALL_KEYS, POSITION_KEYS[0])
+        label = self.config.label
+        check_state_keys(label, request.state_dict, ALL_KEYS, POSITION_KEYS[0])
         missing = [k for k in POSITION_KEYS if k not in request.state_dict]
         if missing:
             raise InvalidStateError(
-                f"Panda SetState needs the joint goal: state_dict lacks {missing}"
+                f"{label} SetState needs the joint goal: state_dict lacks {missing}"
             )
         goal = np.array([float(request.state_dict[k]) for k in POSITION_KEYS])
+        lower, upper = self.limits.lower, self.limits.upper
         for i, key in enumerate(POSITION_KEYS):
-            low, high = LOWER[i] - LIMIT_TOLERANCE, UPPER[i] + LIMIT_TOLERANCE
+            low, high = lower[i] - LIMIT_TOLERANCE, upper[i] + LIMIT_TOLERANCE
             if not (np.isfinite(goal[i]) and low <= goal[i] <= high):
                 raise InvalidStateError(
-                    f"joint goal {key} ({JOINT_NAMES[i]}) = {goal[i]!r} is outside "
-                    f"[{LOWER[i]:.4f}, {UPPER[i]:.4f}] rad"
+                    f"joint goal {key} ({JOINT_NAMES[i]}) = {float(goal[i])!r} is outside the "
+                    f"{label}'s [{lower[i]:.4f}, {upper[i]:.4f}] rad"
                 )
         return goal
 
