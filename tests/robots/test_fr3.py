@@ -99,7 +99,7 @@ def test_set_state_refuses_a_goal_outside_the_fr3s_limits_that_the_panda_accepts
         np.testing.assert_allclose(panda.joint_positions, PANDA_ONLY)
         fr3.set_state(_goal(READY))
         with pytest.raises(
-            InvalidStateError, match=r"joint6_position .* = 0\.2 is outside the FR3's \[0\.4398"
+            InvalidStateError, match=r"joint6_position .* = 0\.2 is outside \[0\.4398, 4\.6216\]"
         ):
             fr3.set_state(_goal(PANDA_ONLY))
         np.testing.assert_allclose(fr3.joint_positions, READY)  # refused: nothing moved

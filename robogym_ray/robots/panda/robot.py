@@ -27,17 +27,15 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from robogym_ray.errors import InvalidActionError, InvalidStateError
-from robogym_ray.robots.arm import LIMIT_TOLERANCE, SimArm, check_state_keys
+from robogym_ray.robots.arm import SimArm
 from robogym_ray.robots.base import StateRequest, StateSnapshot
 from robogym_ray.robots.command_handler import CommandHandlerConfig
+from robogym_ray.robots.panda.checks import check_joint_action, check_joint_goal
 from robogym_ray.robots.panda.config import PandaConfig, parse_options
 from robogym_ray.robots.panda.controller import JointPositionController
 from robogym_ray.robots.panda.model import JOINT_NAMES, LINK_NAMES, urdf_path
 from robogym_ray.robots.panda.state import (
-    ALL_KEYS,
     N_OBJECTS,
-    POSITION_KEYS,
     compose_state,
     sensor_groups,
 )
@@ -85,26 +83,8 @@ class PandaArm(SimArm):
 
     # -- actions --------------------------------------------------------------------------------
     def validate_action(self, action: np.ndarray) -> np.ndarray:
-        a = np.asarray(action, dtype=np.float64).reshape(-1)
-        if a.shape != (7,):
-            raise InvalidActionError(
-                f"{self.config.label} action must have 7 values (joints 1-7, "
-                f"{self.config.action_mode}), got {a.size}"
-            )
         lower, upper = self.limits.lower, self.limits.upper
-        if self.config.action_mode == "abs_pos":
-            low, high = lower - LIMIT_TOLERANCE, upper + LIMIT_TOLERANCE
-        else:
-            high = upper - lower + LIMIT_TOLERANCE
-            low = -high
-        for i in range(7):
-            if not (np.isfinite(a[i]) and low[i] <= a[i] <= high[i]):
-                raise InvalidActionError(
-                    f"action[{i}] ({JOINT_NAMES[i]}, {self.config.action_mode}) = {float(a[i])!r} "
-                    f"is outside [{low[i] + LIMIT_TOLERANCE:.6f}, "
-                    f"{high[i] - LIMIT_TOLERANCE:.6f}] rad"
-                )
-        return a
+        return check_joint_action(action, self.config.action_mode, lower, upper, self.config.label)
 
     def publish(self, command: np.ndarray | None) -> None:
         # None (no new command this tick): the position controller keeps its last target.
@@ -121,23 +101,7 @@ class PandaArm(SimArm):
     # -- state ----------------------------------------------------------------------------------
     def _joint_goal(self, request: StateRequest) -> np.ndarray:
         """The validated joint goal (joints 1-7) of a SetState: all seven keys, within limits."""
-        label = self.config.label
-        check_state_keys(label, request.state_dict, ALL_KEYS, POSITION_KEYS[0])
-        missing = [k for k in POSITION_KEYS if k not in request.state_dict]
-        if missing:
-            raise InvalidStateError(
-                f"{label} SetState needs the joint goal: state_dict lacks {missing}"
-            )
-        goal = np.array([float(request.state_dict[k]) for k in POSITION_KEYS])
-        lower, upper = self.limits.lower, self.limits.upper
-        for i, key in enumerate(POSITION_KEYS):
-            low, high = lower[i] - LIMIT_TOLERANCE, upper[i] + LIMIT_TOLERANCE
-            if not (np.isfinite(goal[i]) and low <= goal[i] <= high):
-                raise InvalidStateError(
-                    f"joint goal {key} ({JOINT_NAMES[i]}) = {float(goal[i])!r} is outside the "
-                    f"{label}'s [{lower[i]:.4f}, {upper[i]:.4f}] rad"
-                )
-        return goal
+        return check_joint_goal(request, self.limits.lower, self.limits.upper, self.config.label)
 
     def _arm_sensors(self, wanted: Sequence[str]) -> dict[str, np.ndarray]:
         out: dict[str, np.ndarray] = {}
