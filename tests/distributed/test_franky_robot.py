@@ -47,6 +47,34 @@ def fr3(sim: FrankySim) -> Iterator[RobotServerHandle]:
     handle.stop()
 
 
+def test_serve_cli_drives_the_arm_and_sigterm_stops_and_releases_it(sim: FrankySim) -> None:
+    """``robogym-ray serve --robot fr3 --hardware franky``: SIGTERM mid-move stops the arm where
+    it is and releases it (franky-sim, like the FCI, takes one client at a time). Runs before
+    the module's in-process server takes the arm."""
+    import franky
+
+    from robogym_ray.protocol import robot_server_pb2 as pb
+    from robogym_ray.protocol.client import RobotServerClient
+    from robogym_ray.robots.panda.model import READY
+    from robogym_ray.robots.panda.state import POSITION_KEYS
+    from robogym_ray.robots.serve import serve_process
+
+    args = ["--robot", "fr3", "--hardware", "franky", "--fci-host", sim.host,
+            "--dynamics-factor", "0.3", "--option", "rs_mode=only_robot"]  # fmt: skip
+    far = READY + np.array([1.2, 0, 0, 0, 0, 0, 0])
+    with serve_process(args) as address, RobotServerClient(address) as client:
+        client.set_state(pb.State(state_dict=dict(zip(POSITION_KEYS, READY.tolist(), strict=True))))
+        client.send_action(far)  # heading 1.2 rad away when the server is stopped
+    # serve_process sent SIGTERM and waited for the exit: the arm is ours to connect to now.
+    robot = franky.Robot(sim.host, realtime_config=franky.RealtimeConfig.Ignore)
+    try:
+        state = robot.state
+        assert abs(state.q[0] - far[0]) > 0.3, "the arm went on to the target after SIGTERM"
+        assert not robot.has_errors
+    finally:
+        del robot  # release the arm for the fixtures below
+
+
 def _hold(env: gym.Env, rng: np.random.Generator) -> np.ndarray:
     """An action close to the arm's start pose: what a trained policy sends (small moves)."""
     task = env.unwrapped
