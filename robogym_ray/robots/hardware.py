@@ -16,6 +16,7 @@ from robogym_ray.errors import ConfigError
 from robogym_ray.robots.base import SimRobot
 from robogym_ray.robots.card import load
 from robogym_ray.robots.registry import robot_card
+from robogym_ray.robots.serve import is_loopback
 from robogym_ray.text import quote
 
 
@@ -30,10 +31,22 @@ class HardwareConfig:
     dynamics_factor: float = 0.1
     """Reset moves (SetState) run at this fraction of the arm's limits, in (0, 1]; the card
     caps it (the FR3's at 0.3)."""
+    realtime: str = "auto"
+    """libfranka's real-time check: ``enforce`` (a real arm: its control loop needs a real-time
+    kernel), ``ignore`` (a simulator), or ``auto``: ignore for a loopback address (a simulator
+    on this machine, such as franky-sim), enforce for any other."""
+
+    @property
+    def enforce_realtime(self) -> bool:
+        if self.realtime == "auto":
+            return not is_loopback(self.fci_host)
+        return self.realtime == "enforce"
 
     def __post_init__(self) -> None:
         if not self.fci_host:
             raise ConfigError("a hardware robot needs its address: --fci-host HOST")
+        if self.realtime not in ("auto", "enforce", "ignore"):
+            raise ConfigError(f"--realtime must be auto, enforce or ignore, got {self.realtime!r}")
         f = self.dynamics_factor
         if not (isinstance(f, int | float) and math.isfinite(f) and 0 < f <= 1):
             raise ConfigError(f"--dynamics-factor must be in (0, 1], got {f!r}")

@@ -105,9 +105,12 @@ class FrankyArm(SimRobot):
     def _connect(self) -> Any:
         franky = self._franky
         try:
-            robot = franky.Robot(
-                self.hardware.fci_host, realtime_config=franky.RealtimeConfig.Ignore
+            realtime = (
+                franky.RealtimeConfig.Enforce
+                if self.hardware.enforce_realtime
+                else franky.RealtimeConfig.Ignore
             )
+            robot = franky.Robot(self.hardware.fci_host, realtime_config=realtime)
         except Exception as exc:  # noqa: BLE001 - franky raises its own and RuntimeError
             raise RobotFaultError(
                 f"{self.name}: cannot connect to the arm's FCI at {self.hardware.fci_host}: {exc}"
