@@ -71,9 +71,11 @@ class ModularArmTask(ArmTask):
 
     robo_gym_joints: ClassVar[tuple[str, ...]]
     """robo-gym 2.1.0's joint names in task order (its ``fix_<name>`` keyword arguments)."""
-    lower: ClassVar[np.ndarray]
-    upper: ClassVar[np.ndarray]
-    """Joint position limits (rad, task order) of robo-gym's robot model."""
+    lower: np.ndarray
+    upper: np.ndarray
+    """Joint position limits (rad, task order) of robo-gym's robot model: class attributes, or
+    instance ones that the arm's task class sets before this class's ``__init__`` reads them
+    (the Panda's and the FR3's differ)."""
     default_joints: ClassVar[tuple[float, ...]]
     """Default ``joint_position`` (rad, task order)."""
     fixed_by_default: ClassVar[tuple[str, ...]] = ()

@@ -1,6 +1,8 @@
 """robo-gym 2.1.0's modular Panda env ``IsaacReachPandaSim-v0``
 (``robo_gym/envs/panda/panda_isaac_reach.py``) and its ``Rob`` variant: ``isaac_reach``'s task
-bound to the Panda as 2.1.0's modular envs see it (``panda.yaml``, ``PandaBaseEnv``).
+bound to the Panda as 2.1.0's modular envs see it (``panda.yaml``, ``PandaBaseEnv``); with
+``panda_model="fr3"`` (ids ``IsaacReachFR3Sim-v0`` / ``...Rob-v0``) the same task on the FR3,
+bounded by its joint limits. The start pose suits both arms.
 """
 
 from __future__ import annotations
@@ -11,7 +13,7 @@ from typing import Any, ClassVar
 from robogym_ray.envs.isaac_reach import WORLD, IsaacReachTask
 from robogym_ray.envs.modular import ModularArmTask
 from robogym_ray.envs.panda_tasks import DEFAULT_JOINTS, PandaTask
-from robogym_ray.robots.panda.model import JOINT_NAMES, LOWER, UPPER
+from robogym_ray.robots.panda.model import JOINT_NAMES
 
 PANDA_WORKSPACE = (0.755, 0.2)
 """``panda.yaml``'s workspace ``r`` / ``min_r`` (m): only for targets outside the box."""
@@ -20,10 +22,10 @@ FINGERS = ((0.04, -1.0, 1.0), (0.04, -1.0, 1.0))
 
 
 class Panda2Arm(ModularArmTask, PandaTask):
-    """The Panda as robo-gym 2.1.0's modular envs see it (``panda.yaml``, ``PandaBaseEnv``)."""
+    """The Panda as robo-gym 2.1.0's modular envs see it (``panda.yaml``, ``PandaBaseEnv``), or
+    the FR3 (``panda_model``): ``PandaTask`` sets the limits, ``lower`` / ``upper``, per arm."""
 
     robo_gym_joints = JOINT_NAMES
-    lower, upper = LOWER, UPPER
     default_joints = DEFAULT_JOINTS
     fixed_by_default = ("panda_joint7",)
 
@@ -32,7 +34,8 @@ class Panda2Arm(ModularArmTask, PandaTask):
 
 
 class IsaacReachPanda(IsaacReachTask, Panda2Arm):
-    """robo-gym 2.1.0's ``IsaacReachPandaSim-v0`` (Isaac Lab's ``Isaac-Reach-Franka-v0``).
+    """robo-gym 2.1.0's ``IsaacReachPandaSim-v0`` (Isaac Lab's ``Isaac-Reach-Franka-v0``), on the
+    Panda or the FR3.
 
     ## Action space
     ``Box((7,), float32)``: joint targets ``joint_position + 0.5 * action`` (rad, joints 1-7),
@@ -51,8 +54,9 @@ class IsaacReachPanda(IsaacReachTask, Panda2Arm):
     (``continue_except_collision`` default False). Target as ``IsaacReachUR`` but pitch pi.
 
     ## Arguments
-    ``isaac_scale``, ``isaac_extra_static_joints`` (default the fingers ``[[0.04, -1, 1]] * 2``),
-    those of ``pose_targets.PoseTaskConfig`` and ``ModularArmTask`` but ``fix_<joint>``, and
+    ``panda_model`` (``panda``, or ``fr3`` for ``IsaacReachFR3``), ``isaac_scale``,
+    ``isaac_extra_static_joints`` (default the fingers ``[[0.04, -1, 1]] * 2``), those of
+    ``pose_targets.PoseTaskConfig`` and ``ModularArmTask`` but ``fix_<joint>``, and
     ``RobotServerEnv``'s.
     """
 

@@ -1,10 +1,15 @@
 """Franka Emika Panda tasks of robo-gym 2.1.0: ``EmptyEnvironmentPanda`` and
 ``EndEffectorPositioningPanda`` (robo-gym's ``EmptyEnvironmentPandaSim-v0`` and
-``EndEffectorPositioningPandaSim-v0``, and their ``Rob`` variants).
+``EndEffectorPositioningPandaSim-v0``, and their ``Rob`` variants), and the same tasks on the
+Franka Research 3 (``panda_model="fr3"``: ids ``...FR3Sim-v0`` / ``...FR3Rob-v0``).
 
 Joints are in the Panda's order 1-7 everywhere, on the wire too. Positions are normalised as
-robo-gym's ``ManipulatorModel`` does: ``np.interp`` between the (asymmetric) limits and
-[-1, 1], so values beyond a limit saturate at +-1 in both directions.
+robo-gym's ``ManipulatorModel`` does: ``np.interp`` between the (asymmetric) limits of the arm
+model and [-1, 1], so values beyond a limit saturate at +-1 in both directions. The FR3's
+limits are not the Panda's, so one normalised action means other joint targets on each arm.
+robo-gym's start pose and target box suit both arms: the start lies within the FR3's limits too
+(its joint 6 starts at 0.4398 rad, joint 4 ends at -0.1169 rad), and the arms' kinematics are
+the same.
 """
 
 from __future__ import annotations
@@ -18,17 +23,27 @@ from gymnasium import spaces
 from robogym_ray.envs.arm_common import ArmTask
 from robogym_ray.envs.base import RobotServerEnv, StepInfo
 from robogym_ray.envs.frames import box, frame_xyz, in_frame, spherical
+from robogym_ray.envs.modular import interp_normalize
 from robogym_ray.envs.outcomes import COLLISION, SUCCESS
 from robogym_ray.envs.render import RenderConfig
 from robogym_ray.envs.render.canvas import Canvas, PerspectiveProjection, ViewCamera
 from robogym_ray.errors import ConfigError
 from robogym_ray.protocol import robot_server_pb2 as pb
 from robogym_ray.protocol.client import RobotServerClient
-from robogym_ray.robots.panda.model import JOINT_NAMES, LOWER, UPPER, forward_kinematics
+from robogym_ray.robots.panda.model import (
+    JOINT_NAMES,
+    LABELS,
+    LIMITS,
+    PANDA_LIMITS,
+    ArmLimits,
+    forward_kinematics,
+)
 from robogym_ray.robots.panda.state import POSITION_KEYS, RS_MODE_KEYS, VELOCITY_KEYS
+from robogym_ray.text import did_you_mean
 
 DEFAULT_JOINTS = (-0.018, -0.76, 0.02, -2.342, 0.03, 1.541, 0.753)
-"""robo-gym 2.1.0's default Panda start (rad), close to the 'ready' pose."""
+"""robo-gym 2.1.0's default Panda start (rad), close to the 'ready' pose; within the limits of
+both arms, so the FR3's tasks start there too."""
 START_SPREAD = (1.5, 0.25, 0.5, 1.0, 0.4, 3.14, 1.0)
 """robo-gym 2.1.0's ``random_joint_offset`` half-widths (rad) for ``randomize_start``."""
 TARGET_BOX = ((0.35, 0.65), (-0.2, 0.2), (0.15, 0.5))
@@ -37,20 +52,22 @@ POSITION_TOLERANCE = 0.1
 """Normalised positions are observed within +-(1 + this) (robo-gym's default tolerance)."""
 
 
-def normalize(q: np.ndarray) -> np.ndarray:
-    """Joint positions (rad) -> [-1, 1], saturating beyond the limits."""
-    return np.clip(2.0 * (np.asarray(q, np.float64) - LOWER) / (UPPER - LOWER) - 1.0, -1.0, 1.0)
+def normalize(q: np.ndarray, limits: ArmLimits = PANDA_LIMITS) -> np.ndarray:
+    """Joint positions (rad) -> [-1, 1] over the arm's ``limits``, saturating beyond them."""
+    return interp_normalize(q, limits.lower, limits.upper)
 
 
-def denormalize(a: np.ndarray) -> np.ndarray:
-    """[-1, 1] -> joint positions (rad), saturating beyond +-1."""
-    return LOWER + (np.clip(np.asarray(a, np.float64), -1.0, 1.0) + 1.0) / 2.0 * (UPPER - LOWER)
+def denormalize(a: np.ndarray, limits: ArmLimits = PANDA_LIMITS) -> np.ndarray:
+    """[-1, 1] -> joint positions (rad) over the arm's ``limits``, saturating beyond +-1."""
+    lower, upper = limits.lower, limits.upper
+    return lower + (np.clip(np.asarray(a, np.float64), -1.0, 1.0) + 1.0) / 2.0 * (upper - lower)
 
 
 class PandaTask(ArmTask):
-    """A task on the Panda: absolute joint targets, normalised, some joints fixed.
+    """A task on a Franka arm: absolute joint targets, normalised, some joints fixed.
 
     Args:
+        panda_model: ``panda`` or ``fr3``: the arm (its joint limits and its robot server).
         fixed_joints: joint names (``panda_joint1`` ...) the agent does not move; each removes
             one action dimension and is held at its start position. Default: ``panda_joint7``.
         **kwargs: see ``RobotServerEnv``.
@@ -66,8 +83,24 @@ class PandaTask(ArmTask):
     action_rate: ClassVar[float] = 30.0
     max_episode_steps = 300
 
-    def __init__(self, *, fixed_joints: Sequence[str] | None = None, **kwargs: Any) -> None:
+    def __init__(
+        self,
+        *,
+        panda_model: str = "panda",
+        fixed_joints: Sequence[str] | None = None,
+        **kwargs: Any,
+    ) -> None:
         super().__init__(**kwargs)
+        if panda_model not in LIMITS:
+            hint = did_you_mean(panda_model, LIMITS)
+            raise ConfigError(
+                f"unknown panda_model {panda_model!r}{hint}; choose from {list(LIMITS)}"
+            )
+        self.panda_model = panda_model
+        self.limits = LIMITS[panda_model]
+        # Instance values: the modular envs (ModularArmTask) read the arm's limits from them.
+        self.lower, self.upper = self.limits.lower, self.limits.upper
+        self.label = LABELS[panda_model]
         fixed = tuple(("panda_joint7",) if fixed_joints is None else fixed_joints)
         unknown = set(fixed) - set(JOINT_NAMES)
         if unknown:
@@ -90,7 +123,7 @@ class PandaTask(ArmTask):
         if self.rs_mode == "1object":
             options.update(objects_controller="true", n_objects="1.0", object_0_frame="target")
             options["object_0_model_name"] = "sphere50_no_collision"
-        return "panda", None, options
+        return self.panda_model, None, options
 
     # -- wire ------------------------------------------------------------------------------
     def set_joints(
@@ -106,16 +139,16 @@ class PandaTask(ArmTask):
 
     def joint_targets(self, action: np.ndarray) -> np.ndarray:
         """Active joints from ``action``, fixed ones at their start; denormalised to rad."""
-        full = normalize(self.start_joints)
+        full = normalize(self.start_joints, self.limits)
         full[self.active] = action
-        return denormalize(full)
+        return denormalize(full, self.limits)
 
     def _send(self, client: RobotServerClient, action: np.ndarray) -> pb.State:
         return self.checked(client.send_action_get_state(self.joint_targets(action)))
 
     # -- reading a state -------------------------------------------------------------------
     def joint_obs(self, msg: pb.State) -> np.ndarray:
-        return np.concatenate([normalize(self.joints(msg)), self.velocities(msg)])
+        return np.concatenate([normalize(self.joints(msg), self.limits), self.velocities(msg)])
 
     def _draw(self, msg: pb.State, cfg: RenderConfig) -> np.ndarray:
         return draw_panda(
@@ -123,7 +156,7 @@ class PandaTask(ArmTask):
             cfg,
             target=getattr(self, "target", None),
             collided=msg.state_dict.get("in_collision", 0.0) >= 0.5,
-            caption=f"{type(self).__name__}  step {self.elapsed_steps}",
+            caption=f"{type(self).__name__} ({self.label})  step {self.elapsed_steps}",
         )
 
 
@@ -134,12 +167,13 @@ def joint_bounds() -> tuple[list[float], list[float]]:
 
 
 class EmptyEnvironmentPanda(PandaTask):
-    """robo-gym 2.1.0's ``EmptyEnvironmentPandaSim-v0``: move freely, do not collide.
+    """robo-gym 2.1.0's ``EmptyEnvironmentPandaSim-v0``, on the Panda or the FR3: move freely,
+    do not collide.
 
     ## Action space
     ``Box(-1, 1, (6,), float32)`` (panda_joint7 fixed at its start; see ``fixed_joints``):
-    normalised absolute joint targets, ``-1`` / ``1`` = the lower / upper joint limit. 30 actions
-    per second; joint speeds at most 0.2 of the published limits.
+    normalised absolute joint targets, ``-1`` / ``1`` = the arm's lower / upper joint limit. 30
+    actions per second; joint speeds at most 0.2 of the arm's published limits.
 
     ## Observation space
     ``Box((14,), float32)``: normalised joint positions (7, +-1.1), joint velocities (7, free).
@@ -155,7 +189,8 @@ class EmptyEnvironmentPanda(PandaTask):
     Joints ``(-0.018, -0.76, 0.02, -2.342, 0.03, 1.541, 0.753)`` (option ``joint_positions``).
 
     ## Arguments
-    ``fixed_joints`` and ``RobotServerEnv``'s.
+    ``panda_model`` (``panda``, or ``fr3`` for the ``...FR3`` ids), ``fixed_joints`` and
+    ``RobotServerEnv``'s.
     """
 
     limit_status = SUCCESS
@@ -179,7 +214,8 @@ class EmptyEnvironmentPanda(PandaTask):
 
 
 class EndEffectorPositioningPanda(PandaTask):
-    """robo-gym 2.1.0's ``EndEffectorPositioningPandaSim-v0``: bring ``panda_hand`` to a point.
+    """robo-gym 2.1.0's ``EndEffectorPositioningPandaSim-v0``, on the Panda or the FR3: bring
+    ``panda_hand`` to a point.
 
     ## Action space
     ``Box(-1, 1, (6,), float32)``, as ``EmptyEnvironmentPanda``.
@@ -209,6 +245,9 @@ class EndEffectorPositioningPanda(PandaTask):
     into the limits); the target uniform in x 0.35-0.65, y -0.2-0.2, z 0.15-0.5 m, sent as object
     0 (``fixed_position``) on robo-gym's tabletop. Options: ``joint_positions``,
     ``ee_target_pose``, ``randomize_start``.
+
+    ## Arguments
+    As ``EmptyEnvironmentPanda``.
     """
 
     rs_mode = "1object"
@@ -232,7 +271,7 @@ class EndEffectorPositioningPanda(PandaTask):
         elif options.get("randomize_start", False):
             spread = np.asarray(START_SPREAD)
             start = np.array(DEFAULT_JOINTS) + self.np_random.uniform(-spread, spread)
-            start = np.clip(start, LOWER, UPPER)
+            start = np.clip(start, self.lower, self.upper)
         else:
             start = np.array(DEFAULT_JOINTS)
         if options.get("ee_target_pose") is not None:

@@ -33,6 +33,8 @@ _DEPLOY = "robogym_ray.envs.ur_deploy_reach:"
 RobotVariant = tuple[str, dict[str, Any]]
 """(robot as spelled in the id, env kwargs that pick it)."""
 _MIR100: tuple[RobotVariant, ...] = (("Mir100", {}),)
+_FRANKA: tuple[RobotVariant, ...] = (("Panda", {}), ("FR3", {"panda_model": "fr3"}))
+"""The Franka arms: the Panda (robo-gym's) and the FR3 (the same task, its joint limits)."""
 
 
 def _ur(*models: str) -> tuple[RobotVariant, ...]:
@@ -58,15 +60,15 @@ TASKS: tuple[tuple[str, str, tuple[RobotVariant, ...]], ...] = (
     # Avoidance tasks: object trajectories and reset poses are laid out for the UR5 workspace.
     ("BasicAvoidance", _URA + "BasicAvoidanceUR", _ur("UR5")),
     ("AvoidanceRaad2022", _URA + "AvoidanceRaad2022UR", _ur("UR5")),
-    # robo-gym 2.1.0's Panda tasks (14 obs / 6 actions and 29 / 6).
-    ("EmptyEnvironment", _PANDA + "EmptyEnvironmentPanda", (("Panda", {}),)),
-    ("EndEffectorPositioning", _PANDA + "EndEffectorPositioningPanda", (("Panda", {}),)),
+    # robo-gym 2.1.0's Panda tasks (14 obs / 6 actions and 29 / 6), and on the FR3.
+    ("EmptyEnvironment", _PANDA + "EmptyEnvironmentPanda", _FRANKA),
+    ("EndEffectorPositioning", _PANDA + "EndEffectorPositioningPanda", _FRANKA),
     # robo-gym 2.1.0's modular UR envs (12 obs / 5 actions and 26 / 5).
     ("EmptyEnvironment2", _URM + "EmptyEnvironment2UR", _ur("UR5", "UR10")),
     ("EndEffectorPositioning2", _URM + "EndEffectorPositioning2UR", _ur("UR5", "UR10")),
     # robo-gym 2.1.0's Isaac Lab reach envs (25 obs / 6 actions and 32 / 7).
     ("IsaacReach", _URM + "IsaacReachUR", _ur("UR10")),
-    ("IsaacReach", _PANDAM + "IsaacReachPanda", (("Panda", {}),)),
+    ("IsaacReach", _PANDAM + "IsaacReachPanda", _FRANKA),
     # Isaac Lab 3's Isaac-Deploy-Reach-UR10e-v0 (19 obs / 6 actions, 60 Hz).
     ("IsaacDeployReach", _DEPLOY + "IsaacDeployReachUR", _ur("UR10e")),
 )

@@ -9,7 +9,11 @@ import pytest
 from robogym_ray.envs.arm_common import ArmTask
 from robogym_ray.envs.registration import register_all
 
-ARM_SIM_IDS = [i for i in register_all() if i.endswith("Sim-v0") and ("UR" in i or "Panda" in i)]
+ARM_SIM_IDS = [
+    i
+    for i in register_all()
+    if i.endswith("Sim-v0") and any(a in i for a in ("UR", "Panda", "FR3"))
+]
 
 
 @pytest.mark.parametrize("env_id", ARM_SIM_IDS)

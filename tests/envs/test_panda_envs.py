@@ -1,4 +1,5 @@
-"""robo-gym 2.1.0's Panda envs over our embedded Panda server: spaces, wire, rewards, ends."""
+"""robo-gym 2.1.0's Panda envs over our embedded Panda server: spaces, wire, rewards, ends; and
+the same tasks on the FR3, which keep its joint limits."""
 
 from __future__ import annotations
 
@@ -11,15 +12,18 @@ import robogym_ray  # noqa: F401 - registers the ids
 from robogym_ray.envs import ENV_IDS
 from robogym_ray.envs.panda_tasks import DEFAULT_JOINTS, denormalize, normalize
 from robogym_ray.errors import ConfigError
-from robogym_ray.robots.panda.model import LOWER, UPPER, forward_kinematics
+from robogym_ray.robots.panda.model import LIMITS, LOWER, UPPER, forward_kinematics
 
 EMPTY, EE = "RoboGymRay/EmptyEnvironmentPandaSim-v0", "RoboGymRay/EndEffectorPositioningPandaSim-v0"
+EMPTY_FR3 = "RoboGymRay/EmptyEnvironmentFR3Sim-v0"
+EE_FR3 = "RoboGymRay/EndEffectorPositioningFR3Sim-v0"
+REACH_FR3 = "RoboGymRay/IsaacReachFR3Sim-v0"
 FOLDED = [0.0, 0.0, 0.0, -3.0, 0.0, 1.0, 0.785]
 """Hand folded into the shoulder: a self-collision."""
 
 
 def test_ids_are_registered_with_both_variants():
-    for name in (EMPTY, EE):
+    for name in (EMPTY, EE, EMPTY_FR3, EE_FR3, REACH_FR3):
         assert name in ENV_IDS and name.replace("Sim-v0", "Rob-v0") in ENV_IDS
 
 
@@ -81,14 +85,15 @@ def test_empty_env_ends_on_a_collision():
         env.close()
 
 
-def test_ee_positioning_rewards_and_success():
-    env = gym.make(EE)
+@pytest.mark.parametrize(("env_id", "model"), [(EE, "panda"), (EE_FR3, "fr3")])
+def test_ee_positioning_rewards_and_success(env_id, model):
+    env = gym.make(env_id)
     try:
         # A target right at the start pose's hand: success at once, reward 2 (not added).
         hand = forward_kinematics(DEFAULT_JOINTS)["panda_hand"][0]
         obs, _ = env.reset(seed=0, options={"ee_target_pose": hand})
         np.testing.assert_allclose(obs[:3][0], 0.0, atol=1e-5)  # r of the target in the hand
-        hold = normalize(np.array(DEFAULT_JOINTS))[:6].astype(np.float32)
+        hold = normalize(np.array(DEFAULT_JOINTS), LIMITS[model])[:6].astype(np.float32)
         _, reward, terminated, _, info = env.step(hold)
         assert terminated and info["final_status"] == "success" and reward == 2.0
         # Far target: -0.005 * distance, observation carries target, hand and last action.
@@ -104,15 +109,18 @@ def test_ee_positioning_rewards_and_success():
         env.close()
 
 
-def test_ee_targets_lie_in_robo_gym_s_box():
-    env = gym.make(EE).unwrapped
+@pytest.mark.parametrize(("env_id", "model"), [(EE, "panda"), (EE_FR3, "fr3")])
+def test_ee_targets_lie_in_robo_gym_s_box(env_id, model):
+    env = gym.make(env_id).unwrapped
+    limits = LIMITS[model]
     try:
         for seed in range(5):
             env.reset(seed=seed, options={"randomize_start": True})
             assert np.all(env.target >= [0.35, -0.2, 0.15]) and np.all(
                 env.target <= [0.65, 0.2, 0.5]
             )
-            assert np.all(env.start_joints >= LOWER) and np.all(env.start_joints <= UPPER)
+            assert np.all(env.start_joints >= limits.lower)
+            assert np.all(env.start_joints <= limits.upper)
     finally:
         env.close()
 
@@ -135,3 +143,30 @@ def test_rob_variant_needs_an_address_and_fixed_joints_are_checked():
     env = gym.make(EMPTY, fixed_joints=())
     assert env.action_space.shape == (7,)
     env.close()
+
+
+@pytest.mark.parametrize("env_id", [EMPTY_FR3, EE_FR3, REACH_FR3])
+def test_fr3_envs_serve_the_fr3_and_act_within_its_limits(env_id):
+    env = gym.make(env_id).unwrapped
+    fr3 = LIMITS["fr3"]
+    try:
+        assert env.server_spec()[0] == "fr3" and env.panda_model == "fr3"
+        np.testing.assert_array_equal((env.lower, env.upper), (fr3.lower, fr3.upper))
+        obs, _ = env.reset(seed=0)
+        assert np.all(fr3.lower <= env.start_joints) and np.all(env.start_joints <= fr3.upper)
+        if env_id == REACH_FR3:  # joint_position + 0.5 * action, bounded by the FR3's limits
+            np.testing.assert_allclose(env.action_space.high, (fr3.upper - env.start_joints) / 0.5)
+            np.testing.assert_allclose(env.action_space.low, (fr3.lower - env.start_joints) / 0.5)
+        else:  # -1 / +1: the FR3's lower / upper limit
+            n = env.action_space.shape[0]
+            np.testing.assert_allclose(env.joint_targets(np.full(n, -1.0))[:n], fr3.lower[:n])
+            np.testing.assert_allclose(env.joint_targets(np.ones(n))[:n], fr3.upper[:n])
+        _, _, terminated, _, _ = env.step(env.action_space.sample())
+        assert not terminated
+    finally:
+        env.close()
+
+
+def test_an_unknown_panda_model_is_refused():
+    with pytest.raises(ConfigError, match="unknown panda_model 'fr2'.*'fr3'"):
+        gym.make(EE, panda_model="fr2")
