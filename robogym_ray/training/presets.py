@@ -93,6 +93,13 @@ TASKS: dict[str, TaskPreset] = {
         _PANDA_POSITIONING,
         "Franka Panda brings its hand to a target point (robo-gym 2.1.0); the quickest to learn",
     ),
+    # The same task on the Franka Research 3 (its joint limits, the Panda's kinematics): the same
+    # rewards, so the same settings, those that trained the Panda on 2 cores.
+    "fr3-positioning": TaskPreset(
+        "RoboGymRay/EndEffectorPositioningFR3Sim-v0",
+        _PANDA_POSITIONING,
+        "Franka FR3 brings its hand to a target point: the Panda's task with the FR3's limits",
+    ),
     # robo-gym 2.1.0's Isaac Lab reach (UR10): the positioning recipe, support fitted to its
     # returns. Steps cost 0.005/m + 0.05/rad (measured over 30 random, zero and bang-bang
     # episodes: -0.161 to -0.027; at most ~-0.167 with pi rad off), success +2 and collision -1

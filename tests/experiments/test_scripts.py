@@ -46,6 +46,7 @@ def load_config(name: str):
         "navigation-average-revisit",
         "navigation-sectors-average",
         "panda-positioning",
+        "fr3-positioning",
         "isaac-reach-ur10",
         "isaac-deploy-reach-ur10e-fine",
     ],
@@ -78,6 +79,16 @@ def test_panda_positioning_is_the_positioning_recipe_with_the_pandas_reward_scal
     assert panda[1] | {"v_min": ur[1]["v_min"], "v_max": ur[1]["v_max"]} == ur[1]
     assert (panda[1]["v_min"], panda[1]["v_max"]) == (-5.0, 5.0)
     assert "Panda" in resolve_task(panda[0].task).env_id
+
+
+def test_fr3_positioning_is_the_panda_recipe_on_the_fr3_with_two_workers() -> None:
+    from robogym_ray.training.presets import TASKS, resolve_task
+
+    fr3, panda = load_config("fr3-positioning"), load_config("panda-positioning")
+    assert fr3[1] == panda[1] and fr3[0].workers == 2  # what a 2-core machine trains with
+    preset = resolve_task(fr3[0].task)
+    assert preset is TASKS["fr3-positioning"] and preset.d4pg == TASKS["panda-positioning"].d4pg
+    assert preset.env_id == "RoboGymRay/EndEffectorPositioningFR3Sim-v0"
 
 
 def test_isaac_reach_ur10_is_the_positioning_recipe_with_its_reward_scale() -> None:
