@@ -50,7 +50,7 @@ from robogym_ray.storage import RunStorage, local_file
 from robogym_ray.training import setup
 from robogym_ray.training.config import TrainConfig
 from robogym_ray.training.presets import TaskPreset
-from robogym_ray.training.resources import ActorNeed, actor_needs
+from robogym_ray.training.resources import ActorNeed, actor_need
 from robogym_ray.training.selection import PolicySnapshots, SnapshotSelector
 from robogym_ray.training.stats import WorkerSlot
 from robogym_ray.training.supervision import start_supervision
@@ -130,7 +130,7 @@ class Program:
     def _need(self, role: str) -> ActorNeed:
         """An actor's Ray options: its row of the table a sweep's bundles come from (read when
         the actor starts: a replacement follows the config as it is then)."""
-        return next(n for n in actor_needs(self.cfg, learner_gpus(self.cfg)) if n.role == role)
+        return actor_need(self.cfg, role, learner_gpus(self.cfg))
 
     def _env_kwargs(self, index: int | None) -> dict[str, Any]:
         """Sim envs build their robots in their own process (``sim_path="inprocess"``) or lease

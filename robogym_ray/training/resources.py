@@ -49,30 +49,44 @@ class ActorNeed:
 
 
 def actor_needs(cfg: TrainConfig, learner_gpus: float = 0.0) -> tuple[ActorNeed, ...]:
-    """Every actor ``cfg`` starts (``learner_gpus``: the learner's, ``-1`` resolved).
+    """Every actor ``cfg`` starts (``learner_gpus``: the learner's, ``-1`` resolved)."""
+    return tuple(n for n in _table(cfg, learner_gpus) if n.count > 0)
+
+
+def actor_need(cfg: TrainConfig, role: str, learner_gpus: float = 0.0) -> ActorNeed:
+    """The row of ``role`` ("learner", "robot server", ...): what each such actor reserves,
+    also while ``cfg`` starts none (a supervisor's robot servers start on demand)."""
+    table = _table(cfg, learner_gpus)
+    for need in table:
+        if need.role == role:
+            return need
+    raise ValueError(f"no actor {role!r} in a run; roles: {', '.join(n.role for n in table)}")
+
+
+def _table(cfg: TrainConfig, learner_gpus: float) -> list[ActorNeed]:
+    """Every kind of actor, counted or not.
 
     With in-process robots ``--server-resource`` places the simulating actors themselves (their
     robots run in them); real-robot workers go anywhere (they reach their robot through its
     real-robot actor, which Ray places with its own 0.05 CPU).
     """
     sims = (cfg.server_resource,) if cfg.sim_path == "inprocess" and cfg.server_resource else ()
-    worker_marks = tuple(m for m in (cfg.worker_resource, *sims) if m)
-    needs = [
+    servers = cfg.workers * cfg.envs_per_worker + int(cfg.evaluator)
+    return [
         ActorNeed("learner", 1, cfg.learner_cpus, learner_gpus,
                   (cfg.learner_resource,) if cfg.learner_resource else ()),
-        ActorNeed("rollout worker", cfg.workers, cfg.worker_cpus, marks=worker_marks),
+        ActorNeed("rollout worker", cfg.workers, cfg.worker_cpus,
+                  marks=tuple(m for m in (cfg.worker_resource, *sims) if m)),
         ActorNeed("real-robot worker", len(cfg.real_robot), cfg.worker_cpus),
         ActorNeed("real robot", len(cfg.real_robot), 0.05),
         ActorNeed("evaluator", int(cfg.evaluator), cfg.evaluator_cpus,
                   marks=tuple(m for m in (cfg.evaluator_resource, *sims) if m)),
         # Counted on every path (as the CPU check always did): 0.05 of slack in-process.
         ActorNeed("supervisor", 1, 0.05),
+        # One robot-server actor per env on the gRPC path (started by the supervisor).
+        ActorNeed("robot server", servers if cfg.sim_path == "grpc" else 0, cfg.server_cpus,
+                  marks=(cfg.server_resource,) if cfg.server_resource else ()),
     ]  # fmt: skip
-    if cfg.sim_path == "grpc":
-        servers = cfg.workers * cfg.envs_per_worker + int(cfg.evaluator)
-        marks = (cfg.server_resource,) if cfg.server_resource else ()
-        needs.append(ActorNeed("robot server", servers, cfg.server_cpus, marks=marks))
-    return tuple(n for n in needs if n.count > 0)
 
 
 def total_cpus(needs: Sequence[ActorNeed]) -> float:

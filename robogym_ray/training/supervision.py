@@ -16,6 +16,7 @@ from robogym_ray.robots.emulation import EmulationConfig
 from robogym_ray.supervision.restart_policy import FaultCause
 from robogym_ray.supervision.supervisor import SupervisorConfig
 from robogym_ray.training.config import TrainConfig
+from robogym_ray.training.resources import actor_need
 
 log = logging.getLogger(__name__)
 
@@ -88,11 +89,12 @@ def start_supervision(cfg: TrainConfig, env_id: str, run_name: str) -> Supervisi
     (the workers supervise their own) and for other envs (e.g. Pendulum-v1)."""
     if not env_id.startswith("RoboGymRay/") or cfg.sim_path != "grpc":
         return None
-    resources = ((cfg.server_resource, 0.01),) if cfg.server_resource else ()
+    server = actor_need(cfg, "robot server")  # the table's row: the CPU check counted it
+    resources = tuple(server.options().get("resources", {}).items())
     running = remote.get_supervisor()
     if running is not None:
         log.warning("using the running supervisor %s", remote.SUPERVISOR_NAME)
         return Supervision(running, remote.SUPERVISOR_NAME, owned=False, resources=resources)
     name = f"{remote.SUPERVISOR_NAME}-{run_name}"
-    actor = remote.start_supervisor(SupervisorConfig(server_num_cpus=cfg.server_cpus), name=name)
+    actor = remote.start_supervisor(SupervisorConfig(server_num_cpus=server.cpus), name=name)
     return Supervision(actor, name, owned=True, resources=resources)
