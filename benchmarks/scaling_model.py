@@ -148,7 +148,7 @@ def over_a_run(steady: dict, free_rate: float, wall_s: float, first_step: int) -
 
 def check(paths: list[Path], costs: dict) -> list[dict]:
     """Each configuration's runs (the medians) against the model over a run of their length."""
-    from robogym_ray.training.command import read_sections
+    from robogym_ray.training.settings import read_sections
 
     min_replay = read_sections(RECIPE)["d4pg"]["min_replay_size"]
     runs: dict[tuple, list[dict]] = defaultdict(list)

@@ -30,9 +30,9 @@ from dataclasses import replace
 from typing import Any
 
 from robogym_ray.config import merge_config
-from robogym_ray.training.command import read_sections
 from robogym_ray.training.config import TrainConfig
 from robogym_ray.training.run import run_training
+from robogym_ray.training.settings import read_sections
 
 VARIANTS: dict[str, dict[str, Any]] = {
     "no-eval": {"evaluator": False},

@@ -58,8 +58,8 @@ def experiment_configs(args: argparse.Namespace) -> tuple[Any, dict[str, Any], A
     """``(TrainConfig, d4pg overrides, EmulationConfig)``: file <- ``--smoke`` <- flags."""
     from robogym_ray.config import merge_config
     from robogym_ray.robots.emulation import EmulationConfig
-    from robogym_ray.training.command import read_sections
     from robogym_ray.training.config import TrainConfig
+    from robogym_ray.training.settings import read_sections
 
     sections = read_sections(args.config)
     train, d4pg = sections["train"], sections["d4pg"]

@@ -137,7 +137,7 @@ def test_a_config_extends_another_field_by_field(
     capfd: pytest.CaptureFixture, tmp_path: Path
 ) -> None:
     from robogym_ray.errors import ConfigError
-    from robogym_ray.training.command import read_sections
+    from robogym_ray.training.settings import read_sections
 
     (tmp_path / "base.json").write_text(
         json.dumps({"train": {"workers": 2, "seed": 3}, "d4pg": {"sigma": 0.3, "n_step": 5}})

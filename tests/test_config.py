@@ -13,8 +13,8 @@ from robogym_ray.distributed.manager import ManagerConfig
 from robogym_ray.errors import ConfigError
 from robogym_ray.robots.serve import ServeConfig, is_loopback, parse_options
 from robogym_ray.robots.server import start_robot_server
-from robogym_ray.training.command import read_sections
 from robogym_ray.training.config import TrainConfig
+from robogym_ray.training.settings import read_sections
 
 
 def test_field_docstrings_become_help() -> None:

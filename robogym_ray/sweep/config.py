@@ -85,8 +85,10 @@ class SweepConfig:
             (self.name is None or _plain(self.name), "name", "a folder name (no / or ..)"),
             (self.resume is None or _plain(self.resume), "resume", "a sweep's folder name"),
         ]
-        check_ranges("SweepConfig", ((ok, name, getattr(self, name), expected)
-                                     for ok, name, expected in checks))  # fmt: skip
+        check_ranges(
+            "SweepConfig",
+            ((ok, name, getattr(self, name), expected) for ok, name, expected in checks),
+        )
         if self.address is not None:
             check_ray_address(self.address, "--address")
 

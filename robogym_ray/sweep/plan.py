@@ -1,19 +1,22 @@
 """A sweep's plan, made and checked before Ray starts: where it goes, its base, its search
 space, and every trial it can run checked as ``train`` checks its input (the task, the D4PG
-settings, the storage, a local Ray's CPUs); a bad space is refused in one line."""
+settings, the storage, a local Ray's CPUs); a bad space is refused in one line.
+
+``training.setup`` (the checks) is imported where it is used: it imports Ray, which
+``sweep summary`` (``report.py``, reading this module's names) does without."""
 
 from __future__ import annotations
 
 import json
 import math
-import os
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from typing import Any
 
-from robogym_ray.config import quote
+from robogym_ray.config import merge_config, quote
 from robogym_ray.errors import ConfigError
-from robogym_ray.storage import RunStorage, resolve_root
+from robogym_ray.storage import RunStorage
 from robogym_ray.sweep.config import SweepConfig
 from robogym_ray.sweep.space import (
     Axis,
@@ -23,13 +26,15 @@ from robogym_ray.sweep.space import (
     parse_space,
     with_values,
 )
-from robogym_ray.training.command import TrainSetup, check_inputs, read_sections, setup_of
-from robogym_ray.training.resources import actor_needs, describe, total_cpus
+from robogym_ray.training.config import TrainConfig
+from robogym_ray.training.settings import TrainSetup, read_sections, setup_of
 
 STATE = "tuner.pkl"
 """The file Tune's experiment folder holds once a sweep has started (``Tuner.can_restore``)."""
-RECORD = "sweep.json"
+SWEEP_RECORD = "sweep.json"
 """The sweep's own record beside Tune's files: its searched keys, metric and command."""
+CPU_HINT = "lower train.workers or the actors' CPUs (train.worker_cpus, ...)"
+"""What a sweep's user may lower when a trial needs more CPUs than the cluster has."""
 
 
 @dataclass(frozen=True)
@@ -53,8 +58,11 @@ class SweepPlan:
         return self.folder.location("runs")
 
     def param_space(self) -> dict[str, Any]:
-        meta = {"runs": self.runs, "trial_cpus": self.cfg.trial_cpus,
-                "placement": self.cfg.placement}  # fmt: skip
+        meta = {
+            "runs": self.runs,
+            "trial_cpus": self.cfg.trial_cpus,
+            "placement": self.cfg.placement,
+        }
         return param_space(self.base, self.axes, meta)
 
     def budget(self) -> float:
@@ -65,11 +73,18 @@ class SweepPlan:
 
     def record(self, argv: list[str]) -> bytes:
         cfg = self.cfg
-        return json.dumps({
-            "name": self.name, "searched": [a.key for a in self.axes], "metric": cfg.metric,
-            "mode": cfg.mode, "scheduler": cfg.scheduler, "time_attr": cfg.time_attr,
-            "command": ["robogym-ray", "sweep", *argv],
-        }, indent=2).encode()  # fmt: skip
+        return json.dumps(
+            {
+                "name": self.name,
+                "searched": [a.key for a in self.axes],
+                "metric": cfg.metric,
+                "mode": cfg.mode,
+                "scheduler": cfg.scheduler,
+                "time_attr": cfg.time_attr,
+                "command": ["robogym-ray", "sweep", *argv],
+            },
+            indent=2,
+        ).encode()
 
 
 def plan_sweep(cfg: SweepConfig) -> SweepPlan:
@@ -81,12 +96,14 @@ def plan_sweep(cfg: SweepConfig) -> SweepPlan:
         base = with_values(base, {(section, k): v for k, v in values.items()})
     axes = tuple(parse_space(cfg.space, cfg.seeds))
     train = base.get("train", {})
-    root = resolve_root(cfg.storage or train.get("storage") or train.get("logdir") or "runs")
+    root = sweeps_root(cfg.storage, train)
     name = cfg.name or f"sweep-{time.strftime('%Y%m%d-%H%M%S')}"
     plan = SweepPlan(cfg, root, name, base, axes)
     if plan.folder.exists(STATE):
-        raise ConfigError(f"sweep {plan.folder.location()} exists: pass --resume {name} to "
-                          "continue it, or another --name")  # fmt: skip
+        raise ConfigError(
+            f"sweep {plan.folder.location()} exists: pass --resume {name} to "
+            "continue it, or another --name"
+        )
     checked, seen = [], set()
     for point in corner_points(axes):
         setup = trial_check(plan, point)
@@ -95,42 +112,59 @@ def plan_sweep(cfg: SweepConfig) -> SweepPlan:
             checked.append(setup)
     wall = cfg.scheduler == "asha" and cfg.time_attr == "wall_s"
     if wall and any(s.train.max_wall_s is None for s in checked):
-        raise ConfigError("--scheduler asha --time-attr wall_s: every trial needs "
-                          "train.max_wall_s (--set train.max_wall_s=SECONDS)")  # fmt: skip
+        raise ConfigError(
+            "--scheduler asha --time-attr wall_s: every trial needs "
+            "train.max_wall_s (--set train.max_wall_s=SECONDS)"
+        )
     return replace(plan, checked=tuple(checked))
 
 
 def trial_check(plan: SweepPlan, point: dict[tuple[str, str], Any]) -> TrainSetup:
     """One trial's settings, checked as ``train`` checks its own before Ray starts; an error
     names the trial by its searched values."""
+    from robogym_ray.training.setup import check_inputs
+
     label = ", ".join(f"{s}.{f}={quote(v)}" for (s, f), v in point.items()) or "the base"
     sections = with_values(plan.base, point)
     # The sweep places every trial's run folder; the trials join the sweep's Ray.
-    sections["train"].update(storage=plan.runs, run_name=None, resume=False,
-                             address=plan.cfg.address, num_cpus=plan.cfg.num_cpus)  # fmt: skip
+    sections["train"].update(
+        storage=plan.runs,
+        run_name=None,
+        resume=False,
+        address=plan.cfg.address,
+        num_cpus=plan.cfg.num_cpus,
+    )
     try:
         setup = setup_of(sections, f"trial {label}")
         if setup.train.real_robot:
-            raise ConfigError("train.real_robot: a real robot cannot be shared by trials; "
-                              "sweep in simulation")  # fmt: skip
-        check_inputs(setup)
-        if plan.cfg.address is None:
-            fits_cpus(setup, plan.cfg, plan.cfg.num_cpus or float(os.cpu_count() or 1))
+            raise ConfigError(
+                "train.real_robot: a real robot cannot be shared by trials; sweep in simulation"
+            )
+        # The local Ray's CPUs are checked here (a joined cluster's: check_trial_cpus once
+        # the sweep has joined it), with the trial's own actor counted.
+        check_inputs(setup, own_cpus=plan.cfg.trial_cpus, cpu_hint=CPU_HINT)
     except ConfigError as exc:
         raise ConfigError(f"trial {label}: {exc}") from None
     return setup
 
 
-def fits_cpus(setup: TrainSetup, cfg: SweepConfig, available: float) -> None:
-    """A trial that needs more CPUs than the cluster has would wait forever: refused."""
-    needs = actor_needs(setup.train)
-    want = total_cpus(needs) + cfg.trial_cpus
-    if want > available + 1e-9:
-        raise ConfigError(
-            f"a trial reserves {want:.2f} Ray CPUs ({describe(needs)} + its own "
-            f"{cfg.trial_cpus:g}) but the cluster has {available:g}: lower train.workers or "
-            "the actors' CPUs, or add nodes"
-        )
+def check_trial_cpus(setup: TrainSetup, cfg: SweepConfig, available: float) -> None:
+    """A trial whose actors and own actor (``trial_cpus``) need more CPUs than ``available``
+    would wait forever: refused, as ``train`` refuses its run."""
+    from robogym_ray.training.setup import check_resources
+
+    check_resources(setup.train, available, own=cfg.trial_cpus, hint=CPU_HINT)
+
+
+def sweeps_root(storage: str | None, train: Mapping[str, Any] | None = None) -> str:
+    """Where the sweeps' folders are, as every node sees it: ``storage`` (``--storage``), else
+    where ``train`` would put a run of the base's ``train`` section (``setup.storage_root``)."""
+    from robogym_ray.training.setup import storage_root
+
+    given = {k: v for k, v in (train or {}).items() if k in ("storage", "logdir")}
+    if storage:
+        given["storage"] = storage
+    return storage_root(merge_config(TrainConfig, given, "the base's train section"))
 
 
 def resume_plan(cfg: SweepConfig) -> SweepPlan:
@@ -145,14 +179,17 @@ def resume_plan(cfg: SweepConfig) -> SweepPlan:
         )
         if value
     ]
-    if given:  # fmt: skip
-        raise ConfigError(f"--resume continues the sweep as it was started: drop "
-                          f"{', '.join(given)}")  # fmt: skip
+    if given:
+        raise ConfigError(
+            f"--resume continues the sweep as it was started: drop {', '.join(given)}"
+        )
     assert cfg.resume is not None
-    plan = SweepPlan(cfg, resolve_root(cfg.storage or "runs"), cfg.resume, {})
+    plan = SweepPlan(cfg, sweeps_root(cfg.storage), cfg.resume, {})
     if not plan.folder.exists(STATE):
-        raise ConfigError(f"--resume {cfg.resume}: no sweep in {plan.folder.location()} "
-                          f"(no {STATE}; --storage names where the sweeps are)")  # fmt: skip
+        raise ConfigError(
+            f"--resume {cfg.resume}: no sweep in {plan.folder.location()} "
+            f"(no {STATE}; --storage names where the sweeps are)"
+        )
     return plan
 
 

@@ -12,8 +12,9 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from robogym_ray.errors import ConfigError
-from robogym_ray.storage import RunStorage, resolve_root
-from robogym_ray.sweep.plan import RECORD, STATE
+from robogym_ray.learner.checkpoint import RUN_CHECKPOINT
+from robogym_ray.storage import RunStorage
+from robogym_ray.sweep.plan import STATE, SWEEP_RECORD, sweeps_root
 
 TABLE = "summary.md"
 FIGURE = "curves.png"
@@ -29,8 +30,9 @@ class Trial:
     """The run's ``summary.json`` (empty while it runs, or if its driver died)."""
 
     def final(self, metric: str) -> float | None:
-        value = self.run.get(metric, next((r[metric] for r in reversed(self.results)
-                                           if metric in r), None))  # fmt: skip
+        value = self.run.get(
+            metric, next((r[metric] for r in reversed(self.results) if metric in r), None)
+        )
         return None if value is None else float(value)
 
     def best(self, metric: str, mode: str) -> float | None:
@@ -39,8 +41,10 @@ class Trial:
 
     def time_to(self, rate: float) -> float | None:
         """Wall seconds (the trial's, across resumes) of its first window at ``rate``."""
-        return next((float(r["wall_s"]) for r in self.results
-                     if r.get("eval/success_rate", 0.0) >= rate), None)  # fmt: skip
+        return next(
+            (float(r["wall_s"]) for r in self.results if r.get("eval/success_rate", 0.0) >= rate),
+            None,
+        )
 
     def ended(self) -> str:
         if self.run.get("ended"):
@@ -52,7 +56,7 @@ class Trial:
         if self.run.get("checkpoint"):
             return str(self.run["checkpoint"])
         last = self.results[-1] if self.results else {}
-        return f"{last['run']}/checkpoints/learner.pt" if last.get("run") else ""
+        return f"{last['run']}/{RUN_CHECKPOINT}" if last.get("run") else ""
 
 
 def read_trials(folder: RunStorage, searched: Sequence[str]) -> list[Trial]:
@@ -83,17 +87,37 @@ def table(trials: Sequence[Trial], metric: str, mode: str) -> str:
     """A Markdown table: a row per trial, its settings, final and best metric, time to 90 and
     95 % success, env steps/s and how it ended."""
     keys = list(trials[0].settings) if trials else []
-    head = ["trial", *keys, f"final {metric}", "best", "t 90 % (min)", "t 95 % (min)",
-            "env steps/s", "ended"]  # fmt: skip
+    head = [
+        "trial",
+        *keys,
+        f"final {metric}",
+        "best",
+        "t 90 % (min)",
+        "t 95 % (min)",
+        "env steps/s",
+        "ended",
+    ]
     rows = []
     for t in trials:
         rate = t.run.get("throughput/env_steps_per_s") or next(
-            (r["throughput/env_steps_per_s"] for r in reversed(t.results)
-             if "throughput/env_steps_per_s" in r), None)  # fmt: skip
-        rows.append([t.name, *(json.dumps(t.settings[k]) for k in keys),
-                     _num(t.final(metric)), _num(t.best(metric, mode)),
-                     *(_num(None if (s := t.time_to(m)) is None else s / 60) for m in MARKS),
-                     _num(rate, 0), t.ended()])  # fmt: skip
+            (
+                r["throughput/env_steps_per_s"]
+                for r in reversed(t.results)
+                if "throughput/env_steps_per_s" in r
+            ),
+            None,
+        )
+        rows.append(
+            [
+                t.name,
+                *(json.dumps(t.settings[k]) for k in keys),
+                _num(t.final(metric)),
+                _num(t.best(metric, mode)),
+                *(_num(None if (s := t.time_to(m)) is None else s / 60) for m in MARKS),
+                _num(rate, 0),
+                t.ended(),
+            ]
+        )
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     return "\n".join([*lines, *("| " + " | ".join(map(str, r)) + " |" for r in rows)])
 
@@ -122,8 +146,7 @@ def figure(trials: Sequence[Trial], path: str, metric: str) -> bool:
         return False
     fig, ax = plt.subplots(figsize=(7, 4))
     for t in trials:
-        points = [(r["wall_s"] / 60, r[metric]) for r in t.results
-                  if metric in r and "wall_s" in r]  # fmt: skip
+        points = [(r["wall_s"] / 60, r[metric]) for r in t.results if metric in r and "wall_s" in r]
         if points:
             label = ", ".join(f"{k}={v}" for k, v in t.settings.items()) or t.name
             ax.plot(*zip(*points, strict=True), label=label)
@@ -140,11 +163,12 @@ def figure(trials: Sequence[Trial], path: str, metric: str) -> bool:
 
 def summarize(name: str, storage: str | None) -> str:
     """Write the table and the figure into the sweep's folder; the text to print."""
-    folder = RunStorage(resolve_root(storage or "runs")).child(name)
-    if not folder.exists(RECORD) and not folder.exists(STATE):
-        raise ConfigError(f"sweep summary: no sweep in {folder.location()} (--storage names "
-                          "where the sweeps are)")  # fmt: skip
-    record = json.loads(folder.read_bytes(RECORD)) if folder.exists(RECORD) else {}
+    folder = RunStorage(sweeps_root(storage)).child(name)
+    if not folder.exists(SWEEP_RECORD) and not folder.exists(STATE):
+        raise ConfigError(
+            f"sweep summary: no sweep in {folder.location()} (--storage names where the sweeps are)"
+        )
+    record = json.loads(folder.read_bytes(SWEEP_RECORD)) if folder.exists(SWEEP_RECORD) else {}
     metric, mode = record.get("metric", "eval/success_rate"), record.get("mode", "max")
     trials = read_trials(folder, record.get("searched", []))
     text = table(trials, metric, mode)

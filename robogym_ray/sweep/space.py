@@ -23,7 +23,7 @@ from typing import Any
 from robogym_ray.config import quote
 from robogym_ray.errors import ConfigError
 from robogym_ray.text import did_you_mean
-from robogym_ray.training.command import SECTIONS
+from robogym_ray.training.settings import SECTIONS
 
 RANDOM = ("uniform", "loguniform", "randint", "choice")
 """Specs drawn per trial; the others are grids."""
@@ -47,8 +47,6 @@ class Axis:
     def corners(self) -> tuple[Any, ...]:
         """Values that bound what a trial can get (every grid value and choice, a range's two
         ends), so checking them checks the space."""
-        if self.kind in ("uniform", "loguniform"):
-            return self.values
         if self.kind == "randint":
             return (self.values[0], self.values[1] - 1)
         return self.values
@@ -74,8 +72,10 @@ def split_key(key: str, what: str) -> tuple[str, str]:
         )
     known = [f.name for f in dataclasses.fields(SECTIONS[section])]
     if name not in known:
-        raise ConfigError(f"{what} {quote(key)}: {SECTIONS[section].__name__} has no field "
-                          f"{quote(name)}{did_you_mean(name, known)}")  # fmt: skip
+        raise ConfigError(
+            f"{what} {quote(key)}: {SECTIONS[section].__name__} has no field "
+            f"{quote(name)}{did_you_mean(name, known)}"
+        )
     return section, name
 
 
@@ -113,18 +113,22 @@ def parse_axis(item: str) -> Axis:
     call = _CALL.match(spec)
     where = f"--space {quote(item)}"
     if call and call.group(1) not in RANDOM:
-        raise ConfigError(f"{where}: no spec {quote(call.group(1))}"
-                          f"{did_you_mean(call.group(1), RANDOM)}; expected a grid "
-                          f"(A,B,... or a JSON list) or one of {', '.join(RANDOM)}")  # fmt: skip
+        raise ConfigError(
+            f"{where}: no spec {quote(call.group(1))}"
+            f"{did_you_mean(call.group(1), RANDOM)}; expected a grid "
+            f"(A,B,... or a JSON list) or one of {', '.join(RANDOM)}"
+        )
     if call:
         kind = call.group(1)
         args = tuple(parse_value(a.strip()) for a in _split_args(call.group(2)))
     else:
         kind = "grid"
         parsed = parse_value(spec) if spec.startswith("[") else None
-        args = tuple(parsed) if isinstance(parsed, list) else tuple(
-            parse_value(a.strip()) for a in spec.split(",")
-        )  # fmt: skip
+        args = (
+            tuple(parsed)
+            if isinstance(parsed, list)
+            else tuple(parse_value(a.strip()) for a in spec.split(","))
+        )
     _check_args(where, kind, args)
     return Axis(section, name, kind, args)
 
@@ -150,8 +154,9 @@ def _check_args(where: str, kind: str, args: tuple[Any, ...]) -> None:
         if not args or any(a == "" for a in args):
             raise ConfigError(f"{where}: expected at least one value, none empty")
         return
-    if len(args) != 2 or not all(isinstance(a, (int, float)) and not isinstance(a, bool)
-                                 for a in args):  # fmt: skip
+    if len(args) != 2 or not all(
+        isinstance(a, (int, float)) and not isinstance(a, bool) for a in args
+    ):
         raise ConfigError(f"{where}: {kind} takes two numbers (LOW,HIGH)")
     low, high = args
     if not low < high:

@@ -35,21 +35,25 @@ import ray
 from ray import tune
 
 from robogym_ray.envs.outcomes import WINDOW_KEYS
+from robogym_ray.learner.checkpoint import CHECKPOINT_NAME, RUN_CHECKPOINT
 from robogym_ray.storage import RunStorage
-from robogym_ray.training.command import SECTIONS, TrainSetup, setup_of
+from robogym_ray.sweep.bundles import bundles, check_fit
+from robogym_ray.sweep.config import SweepConfig
+from robogym_ray.training.ending import COUNTS
 from robogym_ray.training.program import learner_gpus
-from robogym_ray.training.resources import ActorNeed, actor_needs, bundles, check_fit
+from robogym_ray.training.resources import ActorNeed, actor_needs
 from robogym_ray.training.run import RunControl, run_training
+from robogym_ray.training.settings import SECTIONS, TrainSetup, setup_of
 from robogym_ray.training.setup import storage_root
 
-TRIAL_CPUS = 0.1
-"""Bundle 0's CPUs: the trial's own actor, the run's driver (it waits on the others)."""
 STOPPED_BY = "scheduler"
 """``summary.json``'s ``stopped_by`` of a run that Tune stopped."""
 STOP_WAIT_S = 600.0
 """How long a stopped trial waits for its run's final checkpoint and summary (Tune itself
 kills a trial actor that has not stopped after ``TUNE_FORCE_TRIAL_CLEANUP_S``, 600 s)."""
-RECORD = "trial.json"
+TRIAL_RECORD = "trial.json"
+"""A Tune checkpoint's record beside its copy of the learner's checkpoint: the trial's run
+name and counts so far."""
 
 
 def trial_setup(config: Mapping[str, Any]) -> TrainSetup:
@@ -72,7 +76,7 @@ def trial_resources(config: Mapping[str, Any]) -> Any:
 
     Use it with your own Tuner: ``tune.with_resources(TrainingTrial, trial_resources)``."""
     meta = config.get("sweep", {})
-    own = {"CPU": float(meta.get("trial_cpus", TRIAL_CPUS))}
+    own = {"CPU": float(meta.get("trial_cpus", SweepConfig.trial_cpus))}
     return tune.PlacementGroupFactory(
         bundles(trial_needs(trial_setup(config)), own), strategy=meta.get("placement", "PACK")
     )
@@ -90,7 +94,8 @@ class TrainingTrial(tune.Trainable):
         # is the trial's one-line error, before any actor starts).
         check_fit(trial_needs(self.settings), group.bundle_specs[1:] if group else [])
         self.runs = config.get("sweep", {}).get("runs") or storage_root(self.settings.train)
-        self.before = {"env_steps": 0, "wall_s": 0.0}
+        self.before = {"env_steps": 0, "episodes": 0, "wall_s": 0.0}
+        self.part = 1  # the run's part (a restored trial continues its run: the next part)
         self.run_name: str | None = None
         self.copy: str | None = None  # a restored Tune checkpoint's learner.pt
         self.events: queue.Queue[tuple[str, Any]] = queue.Queue()
@@ -110,24 +115,29 @@ class TrainingTrial(tune.Trainable):
 
     def save_checkpoint(self, checkpoint_dir: str) -> None:
         folder = RunStorage(self.runs).child(self.run_name or self.trial_name)
-        folder.download("checkpoints/learner.pt", Path(checkpoint_dir) / "learner.pt")
+        folder.download(RUN_CHECKPOINT, Path(checkpoint_dir) / CHECKPOINT_NAME)
         record = {
             "run_name": self.run_name,
-            **{k: self.last.get(k, 0) for k in ("env_steps", "wall_s", "learner_steps")},
+            "parts": self.part,
+            **{k: self.last.get(k, 0) for k in COUNTS},
         }
-        (Path(checkpoint_dir) / RECORD).write_text(json.dumps(record))  # fmt: skip
+        (Path(checkpoint_dir) / TRIAL_RECORD).write_text(json.dumps(record))
 
     def load_checkpoint(self, checkpoint: str | dict | None) -> None:
         folder = Path(str(checkpoint))
-        record = json.loads((folder / RECORD).read_text())
-        self.before = {"env_steps": int(record["env_steps"]), "wall_s": float(record["wall_s"])}
+        record = json.loads((folder / TRIAL_RECORD).read_text())
+        counts = {k: record.get(k, 0) for k in COUNTS}  # no episodes in an older record
+        self.before = {k: counts[k] for k in ("env_steps", "episodes", "wall_s")}
+        self.part = int(record.get("parts", 1)) + 1
+        # The run's summary counts its whole from these when the killed part wrote none.
+        self.control.checkpointed = {**counts, "parts": self.part - 1}
         self.last = dict(record)
         self.run_name = record.get("run_name")
         every = self.settings.train.checkpoint_every
         self.checkpointed = int(record["learner_steps"]) // every if every else 0
-        if (folder / "learner.pt").is_file():  # Tune may remove its download after this call
-            keep = Path(tempfile.mkdtemp(prefix="trial-checkpoint-")) / "learner.pt"
-            shutil.copyfile(folder / "learner.pt", keep)
+        if (folder / CHECKPOINT_NAME).is_file():  # Tune may remove its download after this call
+            keep = Path(tempfile.mkdtemp(prefix="trial-checkpoint-")) / CHECKPOINT_NAME
+            shutil.copyfile(folder / CHECKPOINT_NAME, keep)
             self.copy = str(keep)
 
     def cleanup(self) -> None:
@@ -139,17 +149,20 @@ class TrainingTrial(tune.Trainable):
     def _start(self) -> None:
         cfg, root = self.settings.train, RunStorage(self.runs)
         name = self.run_name
-        resume = bool(name) and root.child(name).exists("checkpoints/learner.pt")
+        resume = bool(name) and root.child(name).exists(RUN_CHECKPOINT)
         if not resume:  # a new trial, or its folder lost its checkpoint: the Tune copy
             name = _free_name(root, self.trial_name if name is None else name)
         self.run_name = name
         left_wall = None if cfg.max_wall_s is None else cfg.max_wall_s - self.before["wall_s"]
         cfg = replace(
-            cfg, storage=self.runs, run_name=name, resume=resume,
+            cfg,
+            storage=self.runs,
+            run_name=name,
+            resume=resume,
             init_from=None if resume else (self.copy or cfg.init_from),
             total_steps=max(1, cfg.total_steps - self.before["env_steps"]),
             max_wall_s=None if left_wall is None else max(1.0, left_wall),
-        )  # fmt: skip
+        )
         settings = self.settings
 
         def train() -> None:
@@ -167,6 +180,7 @@ class TrainingTrial(tune.Trainable):
             "env_steps": self.before["env_steps"] + int(window["env_steps"]),
             "wall_s": round(self.before["wall_s"] + window["wall_s"], 2),
             "learner_steps": int(window["learner_steps"]),
+            "episodes": self.before["episodes"] + int(window["episodes"]),
             "eval/success_rate": window["success_rate"],
             "eval/return": window["return"],
             "eval/snapshot_success_rate": window["snapshot_success_rate"],
@@ -191,6 +205,7 @@ class TrainingTrial(tune.Trainable):
             "env_steps": self.before["env_steps"] + int(summary["env_steps"]),
             "wall_s": round(self.before["wall_s"] + float(summary["wall_s"]), 2),
             "learner_steps": int(summary["learner_steps"]),
+            "episodes": self.before["episodes"] + int(summary["episodes"]),
             "ended": summary["ended"],
             "ended_by": summary.get("ended_by", ""),
             "checkpoint": summary.get("checkpoint") or "",

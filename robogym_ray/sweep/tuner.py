@@ -12,7 +12,7 @@ import ray
 from ray import tune
 
 from robogym_ray.errors import ConfigError
-from robogym_ray.sweep.plan import RECORD, SweepPlan, asha_grace, fits_cpus
+from robogym_ray.sweep.plan import SWEEP_RECORD, SweepPlan, asha_grace, check_trial_cpus
 from robogym_ray.sweep.trial import TrainingTrial, trial_needs, trial_resources
 from robogym_ray.training.resources import describe
 from robogym_ray.training.setup import ensure_ray
@@ -34,15 +34,18 @@ def run_sweep(plan: SweepPlan, argv: list[str]) -> Any:
     try:
         trainable = tune.with_resources(TrainingTrial, trial_resources)
         if cfg.resume:
-            tuner = tune.Tuner.restore(plan.folder.location(), trainable,
-                                       resume_unfinished=True, resume_errored=True)  # fmt: skip
+            tuner = tune.Tuner.restore(
+                plan.folder.location(), trainable, resume_unfinished=True, resume_errored=True
+            )
         else:
             check_cluster(plan)
-            plan.folder.write_bytes(RECORD, plan.record(argv), "sweep record")
+            plan.folder.write_bytes(SWEEP_RECORD, plan.record(argv), "sweep record")
             tuner = tune.Tuner(
-                trainable, param_space=plan.param_space(),
-                tune_config=tune_config(plan), run_config=run_config(plan),
-            )  # fmt: skip
+                trainable,
+                param_space=plan.param_space(),
+                tune_config=tune_config(plan),
+                run_config=run_config(plan),
+            )
         return tuner.fit()
     finally:
         if started:
@@ -55,12 +58,14 @@ def check_cluster(plan: SweepPlan) -> None:
     would wait forever."""
     total = ray.cluster_resources()
     for setup in plan.checked:
-        fits_cpus(setup, plan.cfg, float(total.get("CPU", 0.0)))
+        check_trial_cpus(setup, plan.cfg, float(total.get("CPU", 0.0)))
         needs = trial_needs(setup)
         gpus = sum(n.gpus * n.count for n in needs)
         if gpus > total.get("GPU", 0.0) + 1e-9:
-            raise ConfigError(f"a trial needs {describe(needs)} but the cluster has "
-                              f"{total.get('GPU', 0.0):g} GPUs")  # fmt: skip
+            raise ConfigError(
+                f"a trial needs {describe(needs)} but the cluster has "
+                f"{total.get('GPU', 0.0):g} GPUs"
+            )
 
 
 def tune_config(plan: SweepPlan) -> tune.TuneConfig:
@@ -69,14 +74,20 @@ def tune_config(plan: SweepPlan) -> tune.TuneConfig:
         from ray.tune.schedulers import ASHAScheduler
 
         scheduler = ASHAScheduler(
-            time_attr=cfg.time_attr, metric=cfg.metric, mode=cfg.mode,
+            time_attr=cfg.time_attr,
+            metric=cfg.metric,
+            mode=cfg.mode,
             # Trials end themselves at their budget; a result at max_t would be stopped, and a
             # run's last window (its final evaluation) can be at or past its budget.
-            max_t=2 * max(plan.budget(), asha_grace(plan)), grace_period=asha_grace(plan),
+            max_t=2 * max(plan.budget(), asha_grace(plan)),
+            grace_period=asha_grace(plan),
             reduction_factor=cfg.reduction_factor,
-        )  # fmt: skip
-    return tune.TuneConfig(num_samples=cfg.samples, scheduler=scheduler,
-                           max_concurrent_trials=cfg.max_concurrent or None)  # fmt: skip
+        )
+    return tune.TuneConfig(
+        num_samples=cfg.samples,
+        scheduler=scheduler,
+        max_concurrent_trials=cfg.max_concurrent or None,
+    )
 
 
 def run_config(plan: SweepPlan) -> tune.RunConfig:

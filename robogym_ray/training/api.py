@@ -23,14 +23,8 @@ from typing import Any
 from robogym_ray.errors import ConfigError
 from robogym_ray.learner.config import D4PGConfig
 from robogym_ray.robots.emulation import EmulationConfig
-from robogym_ray.training.command import (
-    TrainSetup,
-    check_inputs,
-    read_sections,
-    sections_of,
-    setup_of,
-)
 from robogym_ray.training.config import TrainConfig
+from robogym_ray.training.settings import TrainSetup, read_sections, sections_of, setup_of
 
 Settings = str | Path | Mapping[str, Any] | TrainConfig | TrainSetup | None
 """What ``train`` and ``settings`` take: a config file, its dict, or the config objects."""
@@ -96,6 +90,7 @@ def train(
             kept).
     """
     from robogym_ray.training.run import run_training
+    from robogym_ray.training.setup import check_inputs
 
     setup = settings(config, d4pg=d4pg, emulation=emulation, **fields)
     check_inputs(setup)  # a bad input costs no Ray start and leaves no run directory

@@ -4,43 +4,15 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-from collections.abc import Mapping
-from dataclasses import dataclass, fields
-from pathlib import Path
+from dataclasses import fields
 from typing import Any
 
-from robogym_ray.config import (
-    add_config_args,
-    check_dir_path,
-    check_fields,
-    check_keys,
-    flags_of,
-    merge_config,
-    quote,
-    read_json,
-)
+from robogym_ray.config import add_config_args
 from robogym_ray.envs.outcomes import WINDOW_KEYS
-from robogym_ray.errors import ConfigError
-from robogym_ray.learner.config import D4PGConfig
 from robogym_ray.robots.emulation import EmulationConfig
 from robogym_ray.training import ending
 from robogym_ray.training.config import TrainConfig
-
-SECTIONS = {"train": TrainConfig, "d4pg": D4PGConfig, "emulation": EmulationConfig}
-"""Keys a config file may hold, and the config class whose fields each section holds."""
-
-
-@dataclass(frozen=True)
-class TrainSetup:
-    """Everything ``robogym-ray train`` was asked for."""
-
-    train: TrainConfig
-    d4pg: dict[str, Any]
-    """D4PGConfig overrides on top of the task's preset."""
-    emulation: EmulationConfig
-    """What the emulated workers' robots differ by (used when train.emulated_workers > 0)."""
-
+from robogym_ray.training.settings import TrainSetup, read_sections, setup_of
 
 HELP_GROUPS: dict[str, tuple[str, ...]] = {
     "run": ("task", "total_steps", "max_wall_s", "seed", "config", "run_name", "resume",
@@ -84,125 +56,11 @@ def _given(args: argparse.Namespace, cls: type) -> dict[str, Any]:
     return {k: tuple(v) if isinstance(v, list) else v for k, v in given.items()}
 
 
-def read_sections(path: str | Path, _chain: tuple[Path, ...] = ()) -> dict[str, dict[str, Any]]:
-    """The sections of a config file ({"train": {...}, "d4pg": {...}, "emulation": {...}}).
-
-    A file may name another with ``"extends": "base.json"`` (a path relative to the file): it
-    starts from the base's sections and overrides them field by field, so a variant of a recipe
-    holds only what it changes and the two cannot drift apart unnoticed.
-    """
-    path = Path(path)
-    chain = (*_chain, path.resolve())
-    if chain[-1] in _chain:
-        raise ConfigError(f"{path}: 'extends' forms a cycle: {' -> '.join(map(str, chain))}")
-    return sections_of(read_json(path), str(path), path.parent, chain)
-
-
-def sections_of(
-    data: object, source: str, base_dir: Path, chain: tuple[Path, ...] = ()
-) -> dict[str, dict[str, Any]]:
-    """The sections of a config's JSON object (a file's, or the same dict given in Python),
-    each checked against its config class; ``"extends"`` is read relative to ``base_dir``.
-    ``source`` names the config in errors."""
-    if not isinstance(data, dict):
-        raise ConfigError(
-            f"{source}: expected a JSON object with keys among {', '.join(SECTIONS)} and "
-            f"'extends', got a JSON {type(data).__name__}"
-        )
-    check_keys(data, (*SECTIONS, "extends"), source, "top-level key(s)")
-    for name, section in data.items():
-        if name != "extends" and not isinstance(section, dict):
-            raise ConfigError(f"{source}: section {name!r} must be a JSON object")
-        if name != "extends":
-            # Each file is checked on its own, so an error names the file that holds the key.
-            check_fields(SECTIONS[name], section, f"{source}: {name}")
-    base: dict[str, dict[str, Any]] = {name: {} for name in SECTIONS}
-    if "extends" in data:
-        parent = data["extends"]
-        if not isinstance(parent, str) or not parent:
-            raise ConfigError(
-                f"{source}: 'extends' must be a config file name, got {quote(parent)}"
-            )
-        try:
-            base = read_sections(base_dir / parent, chain)
-        except ConfigError as exc:
-            raise ConfigError(f"{source} extends {parent}: {exc}") from None
-    return {name: {**base[name], **data.get(name, {})} for name in SECTIONS}
-
-
-def setup_of(
-    sections: Mapping[str, Mapping[str, Any]],
-    source: str,
-    train: Mapping[str, Any] | None = None,
-    emulation: Mapping[str, Any] | None = None,
-    d4pg: Mapping[str, Any] | None = None,
-    flagged: bool = False,
-) -> TrainSetup:
-    """A config's ``sections`` with ``train``, ``emulation`` and ``d4pg`` values on top (the
-    command line's flags, a Python call's keywords). ``flagged``: those values came as flags,
-    so an error about one names the flag (``--workers 0``), not the field."""
-    train, emulation, d4pg = dict(train or {}), dict(emulation or {}), dict(d4pg or {})
-    check_fields(D4PGConfig, d4pg, f"{source}: d4pg")
-    return TrainSetup(
-        train=merge_config(TrainConfig, {**sections.get("train", {}), **train}, source,
-                           flags=flags_of(train) if flagged else None),
-        d4pg={**sections.get("d4pg", {}), **d4pg},
-        emulation=merge_config(EmulationConfig, {**sections.get("emulation", {}), **emulation},
-                               source, flags=flags_of(emulation, "emu-") if flagged else None),
-    )  # fmt: skip
-
-
 def build_config(args: argparse.Namespace) -> TrainSetup:
     train, emu = _given(args, TrainConfig), _given(args, EmulationConfig)
     source = train.get("config") or "command line"
     data = read_sections(source) if train.get("config") else {}
     return setup_of(data, source, train, emu, flagged=True)
-
-
-def check_inputs(setup: TrainSetup) -> None:
-    """Everything the run reads, checked before Ray starts or its run directory is made: the
-    task, the D4PG settings, the log directory, the local Ray's CPUs, ``--init-from`` and that
-    the storage can be written."""
-    from robogym_ray.experience.rollout import box_dims, make_gym_env
-    from robogym_ray.learner.checkpoint import CHECKPOINT_NAME
-    from robogym_ray.storage import RunStorage, check_writable, is_uri
-    from robogym_ray.training import setup as run_setup
-    from robogym_ray.training.presets import d4pg_for, resolve_task
-
-    cfg = setup.train
-    try:
-        preset = resolve_task(cfg.task)
-    except ConfigError as exc:  # its message repeats the name whole: a 1 MB one too
-        raise ConfigError(str(exc).replace(repr(cfg.task), quote(cfg.task))) from None
-    d4pg = d4pg_for(preset, setup.d4pg, cfg)
-    root = run_setup.storage_root(cfg)
-    if not is_uri(root):
-        local = Path(root) / cfg.run_name if cfg.run_name else Path(root)
-        check_dir_path(local, "--storage/--logdir/--run-name")
-    if cfg.address is None:  # the local Ray gets num_cpus, or (at most) all of this machine
-        run_setup.check_resources(cfg, cfg.num_cpus or float(os.cpu_count() or 1))
-    init_from, label = cfg.init_from, "--init-from"
-    if cfg.run_name:  # a taken name without --resume, or --resume of another task: refused
-        place = run_setup.run_place(cfg, preset.env_id)
-        if cfg.resume:
-            # A resumed run continues from its own checkpoint and ignores --init-from
-            # (seed_checkpoint); checked the same way (other network sizes would otherwise
-            # crash its learner actor after Ray started).
-            own = place.storage.location(f"checkpoints/{CHECKPOINT_NAME}")
-            init_from, label = own, "--resume: the run's checkpoint"
-    # The file first: probing the env below imports pybullet, whose banner goes to stderr.
-    state = run_setup.read_init_from(init_from, label) if init_from else None
-    # A file written and removed at the root (made if missing, left empty by a refusal below).
-    check_writable(RunStorage(root), "--storage" if cfg.storage else "--logdir")
-    probe = make_gym_env(preset.env_id)()  # dimensions only: it never resets, so no server
-    try:
-        obs_dim, act_dim = box_dims(probe)
-    finally:
-        probe.close()
-    if init_from:
-        run_setup.check_init_from(init_from, d4pg, obs_dim, act_dim, state, label)
-    else:
-        run_setup.learner_networks(d4pg, obs_dim, act_dim)
 
 
 def run(args: argparse.Namespace) -> int:

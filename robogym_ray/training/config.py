@@ -176,13 +176,6 @@ class TrainConfig:
         """Every rollout worker: the simulated ones and one per real robot."""
         return self.workers + len(self.real_robot)
 
-    def cpu_demand(self) -> float:
-        """Ray CPUs the run reserves: the sum of ``resources.actor_needs``, the one table the
-        builder starts its actors from."""
-        from robogym_ray.training.resources import actor_needs, total_cpus
-
-        return total_cpus(actor_needs(self))
-
     def __post_init__(self) -> None:
         checks = [
             (self.workers >= 0, "workers", ">= 0"),

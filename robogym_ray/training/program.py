@@ -42,7 +42,7 @@ from robogym_ray.envs.registration import variant_id
 from robogym_ray.errors import DiskWriteError
 from robogym_ray.experience.revisits import FailedStartRevisits
 from robogym_ray.experience.rollout import box_dims, make_gym_env
-from robogym_ray.learner.checkpoint import CHECKPOINT_NAME, replay_path
+from robogym_ray.learner.checkpoint import RUN_CHECKPOINT, replay_path
 from robogym_ray.learner.config import D4PGConfig
 from robogym_ray.realrobot.safety import safety_for
 from robogym_ray.robots.emulation import EmulationConfig
@@ -277,7 +277,7 @@ def seed_checkpoint(
     Checked (``check_init_from``) before anything is copied. Returns False (and copies nothing)
     when the run already has its own checkpoint (a ``--resume``d run: it is newer).
     """
-    target = f"checkpoints/{CHECKPOINT_NAME}"
+    target = RUN_CHECKPOINT
     if storage.exists(target):
         log.warning("%s exists; --init-from %s is not used", storage.location(target), init_from)
         return False

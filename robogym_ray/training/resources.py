@@ -9,11 +9,10 @@ asks for a token 0.01 of it, which says where, not how many.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from robogym_ray.errors import ConfigError
 from robogym_ray.training.config import TrainConfig
 
 MARK = 0.01
@@ -93,38 +92,6 @@ def total_cpus(needs: Sequence[ActorNeed]) -> float:
     return sum(n.count * n.cpus for n in needs)
 
 
-def bundles(needs: Sequence[ActorNeed], own: Mapping[str, float]) -> list[dict[str, float]]:
-    """A trial's placement-group bundles: ``own`` (the trial's driver, bundle 0) and one per
-    actor. One each, because Ray checks that an actor fits some bundle, not that the bundles
-    add up to every actor: a shared bundle would leave actors waiting, not refused."""
-    out = [dict(own)]
-    for need in needs:
-        out += [need.bundle() for _ in range(need.count)]
-    return out
-
-
-def check_fit(needs: Sequence[ActorNeed], available: Sequence[Mapping[str, float]]) -> None:
-    """Refuse, in one line, actors that the bundles ``available`` (a trial's, less its own)
-    cannot all hold: each actor must fit one bundle's room left by the actors placed before it
-    (largest first). Ray itself would only refuse an actor bigger than every bundle and leave
-    the rest waiting forever."""
-    room = [dict(b) for b in available]
-    for need in sorted(needs, key=lambda n: (-n.gpus, -n.cpus)):
-        for _ in range(need.count):
-            want = need.bundle()
-            slot = next((r for r in room if all(r.get(k, 0.0) + 1e-9 >= v
-                                                 for k, v in want.items())), None)  # fmt: skip
-            if slot is None:
-                raise ConfigError(
-                    f"the trial's actors need {describe(needs)} but its placement group holds "
-                    f"{_sum(available)} besides the trial's own bundle (no room for the "
-                    f"{need.role}: {want}); build its resources with "
-                    "robogym_ray.sweep.trial_resources(config)"
-                )
-            for k, v in want.items():
-                slot[k] -= v
-
-
 def describe(needs: Sequence[ActorNeed]) -> str:
     """``learner 0.5 CPU + 2 rollout worker x 0.25 CPU + ...``."""
     parts = []
@@ -133,11 +100,3 @@ def describe(needs: Sequence[ActorNeed]) -> str:
         parts.append(f"{n.count} {n.role} x {n.cpus:g} CPU{gpu}" if n.count > 1
                      else f"{n.role} {n.cpus:g} CPU{gpu}")  # fmt: skip
     return " + ".join(parts)
-
-
-def _sum(available: Sequence[Mapping[str, float]]) -> str:
-    total: dict[str, float] = {}
-    for b in available:
-        for k, v in b.items():
-            total[k] = total.get(k, 0.0) + v
-    return ", ".join(f"{v:g} {k}" for k, v in sorted(total.items())) or "nothing"

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import logging
+import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -13,19 +14,22 @@ from typing import Any
 
 import ray
 
-from robogym_ray.config import quote
+from robogym_ray.config import check_dir_path, quote
 from robogym_ray.distributed.local_ray import join_ray, start_local_ray
 from robogym_ray.errors import ConfigError
+from robogym_ray.experience.rollout import box_dims, make_gym_env
 from robogym_ray.learner import checkpoint
-from robogym_ray.learner.checkpoint import CHECKPOINT_NAME, replay_path
+from robogym_ray.learner.checkpoint import RUN_CHECKPOINT, replay_path
 from robogym_ray.learner.config import D4PGConfig
 from robogym_ray.learner.learner import make_adam
 from robogym_ray.learner.networks import DistributionalCritic, Policy
 from robogym_ray.learner.schedules import linear_ramp
-from robogym_ray.storage import RunStorage, local_file, resolve_root
+from robogym_ray.storage import RunStorage, check_writable, is_uri, local_file, resolve_root
 from robogym_ray.text import clip_text
 from robogym_ray.training.config import TrainConfig
-from robogym_ray.training.presets import resolve_task
+from robogym_ray.training.presets import d4pg_for, resolve_task
+from robogym_ray.training.resources import actor_needs, describe, total_cpus
+from robogym_ray.training.settings import TrainSetup
 
 log = logging.getLogger(__name__)
 
@@ -51,20 +55,72 @@ def noise_scale(cfg: TrainConfig, env_steps: int) -> float:
     )
 
 
-def check_resources(cfg: TrainConfig, available: float | None = None) -> None:
+def check_resources(
+    cfg: TrainConfig, available: float | None = None, *, own: float = 0.0, hint: str = ""
+) -> None:
     """Fail fast when the actors cannot all be scheduled (they would wait forever otherwise).
 
-    ``available``: the CPUs to fit in (default: the joined Ray cluster's).
+    Args:
+        available: the CPUs to fit in (default: the joined Ray cluster's).
+        own: CPUs reserved beside the run's actors: a sweep trial's own actor (its driver).
+        hint: what the caller's user may lower, in the caller's words (default: train's
+            flags).
     """
     if available is None:
         available = float(ray.cluster_resources().get("CPU", 0.0))
-    demand = cfg.cpu_demand()
+    needs = actor_needs(cfg)
+    demand = total_cpus(needs) + own
     if demand > available + 1e-9:
-        raise ConfigError(
-            f"the run reserves {demand:.2f} Ray CPUs but the cluster has {available:g}: lower "
-            f"--workers ({cfg.workers}), --worker-cpus ({cfg.worker_cpus}), --server-cpus "
-            f"({cfg.server_cpus}) or --learner-cpus ({cfg.learner_cpus}), or add nodes"
+        hint = hint or (
+            f"lower --workers ({cfg.workers}), --worker-cpus ({cfg.worker_cpus}), --server-cpus "
+            f"({cfg.server_cpus}) or --learner-cpus ({cfg.learner_cpus})"
         )
+        driver = f" + its driver {own:g} CPU" if own else ""
+        raise ConfigError(
+            f"the run reserves {demand:.2f} Ray CPUs ({describe(needs)}{driver}) but the "
+            f"cluster has {available:g}: {hint}, or add nodes"
+        )
+
+
+def check_inputs(setup: TrainSetup, *, own_cpus: float = 0.0, cpu_hint: str = "") -> None:
+    """Everything the run reads, checked before Ray starts or its run directory is made: the
+    task, the D4PG settings, the log directory, the local Ray's CPUs (``check_resources``, with
+    ``own_cpus`` and ``cpu_hint``), ``--init-from`` and that the storage can be written."""
+    cfg = setup.train
+    try:
+        preset = resolve_task(cfg.task)
+    except ConfigError as exc:  # its message repeats the name whole: a 1 MB one too
+        raise ConfigError(str(exc).replace(repr(cfg.task), quote(cfg.task))) from None
+    d4pg = d4pg_for(preset, setup.d4pg, cfg)
+    root = storage_root(cfg)
+    if not is_uri(root):
+        local = Path(root) / cfg.run_name if cfg.run_name else Path(root)
+        check_dir_path(local, "--storage/--logdir/--run-name")
+    if cfg.address is None:  # the local Ray gets num_cpus, or (at most) all of this machine
+        available = cfg.num_cpus or float(os.cpu_count() or 1)
+        check_resources(cfg, available, own=own_cpus, hint=cpu_hint)
+    init_from, label = cfg.init_from, "--init-from"
+    if cfg.run_name:  # a taken name without --resume, or --resume of another task: refused
+        place = run_place(cfg, preset.env_id)
+        if cfg.resume:
+            # A resumed run continues from its own checkpoint and ignores --init-from
+            # (seed_checkpoint); checked the same way (other network sizes would otherwise
+            # crash its learner actor after Ray started).
+            own = place.storage.location(RUN_CHECKPOINT)
+            init_from, label = own, "--resume: the run's checkpoint"
+    # The file first: probing the env below imports pybullet, whose banner goes to stderr.
+    state = read_init_from(init_from, label) if init_from else None
+    # A file written and removed at the root (made if missing, left empty by a refusal below).
+    check_writable(RunStorage(root), "--storage" if cfg.storage else "--logdir")
+    probe = make_gym_env(preset.env_id)()  # dimensions only: it never resets, so no server
+    try:
+        obs_dim, act_dim = box_dims(probe)
+    finally:
+        probe.close()
+    if init_from:
+        check_init_from(init_from, d4pg, obs_dim, act_dim, state, label)
+    else:
+        learner_networks(d4pg, obs_dim, act_dim)
 
 
 def learner_networks(
@@ -185,7 +241,7 @@ def check_run_place(place: RunPlace, resume: bool, env_id: str) -> None:
         )
     if not resume:
         return
-    if not storage.exists(f"checkpoints/{CHECKPOINT_NAME}"):
+    if not storage.exists(RUN_CHECKPOINT):
         raise ConfigError(f"--resume: {storage.location()} has no checkpoint to continue from")
     if storage.exists("config.json"):
         try:

@@ -7,9 +7,10 @@ import pytest
 
 from robogym_ray.cli import main
 from robogym_ray.errors import ConfigError
+from robogym_ray.sweep.bundles import bundles, check_fit
 from robogym_ray.sweep.space import parse_axis, parse_set, parse_space
 from robogym_ray.training.config import TrainConfig
-from robogym_ray.training.resources import actor_needs, bundles, check_fit, total_cpus
+from robogym_ray.training.resources import actor_need, actor_needs, total_cpus
 
 
 def refused(capfd: pytest.CaptureFixture, *argv: str) -> str:
@@ -77,9 +78,24 @@ def test_a_trials_bundles_hold_its_actors_one_each() -> None:
     assert made[0] == {"CPU": 0.1}
     assert {"CPU": 0.5, "gpu_node": 0.01, "GPU": 1.0} in made
     assert len(made) == 1 + 1 + 3 + 1 + 1  # own, learner, workers, evaluator, supervisor
-    assert sum(b["CPU"] for b in made[1:]) == pytest.approx(total_cpus(needs))
-    assert total_cpus(needs) == pytest.approx(cfg.cpu_demand())
+    # Counted by hand: learner 0.5, three workers at 0.25, evaluator 0.1, supervisor 0.05.
+    assert sum(b["CPU"] for b in made[1:]) == pytest.approx(0.5 + 3 * 0.25 + 0.1 + 0.05)
+    assert total_cpus(needs) == pytest.approx(1.4)
     check_fit(needs, made[1:])
     with pytest.raises(ConfigError, match="no room for the evaluator") as info:
         check_fit(needs, made[1:-2])  # two bundles short
     assert "\n" not in str(info.value)
+
+
+def test_the_robot_servers_are_a_row_of_the_table() -> None:
+    """With --sim-path grpc, one robot server per env (and the evaluator's), each with the
+    server's CPUs and mark: what the supervisor starts them with and the CPU check counts."""
+    cfg = TrainConfig(workers=2, envs_per_worker=3, sim_path="grpc", server_resource="sim")
+    server = actor_need(cfg, "robot server")
+    assert (server.count, server.cpus) == (2 * 3 + 1, 0.2)
+    assert server.options() == {"num_cpus": 0.2, "resources": {"sim": 0.01}}
+    # learner 0.5, two workers at 0.25, evaluator 0.1, supervisor 0.05, seven servers at 0.2
+    assert total_cpus(actor_needs(cfg)) == pytest.approx(0.5 + 0.5 + 0.1 + 0.05 + 1.4)
+    inprocess = TrainConfig(workers=2, envs_per_worker=3)
+    assert actor_need(inprocess, "robot server").count == 0
+    assert "robot server" not in [n.role for n in actor_needs(inprocess)]
