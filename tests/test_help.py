@@ -13,8 +13,9 @@ import pytest
 
 from robogym_ray.cli import COMMANDS, build_parser, main
 from robogym_ray.config import add_config_args, help_text
+from robogym_ray.training.api import settings
 from robogym_ray.training.command import HELP_GROUPS, build_config
-from robogym_ray.training.config import TrainConfig
+from robogym_ray.training.config import DEFAULT_TOTAL_STEPS, TrainConfig
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -86,3 +87,31 @@ def test_the_readmes_commands_parse_as_written(argv: list[str]) -> None:
     args = build_parser(argv).parse_args(argv)
     if args.command == "train":  # flags and config file merged into the run's config
         build_config(args)
+
+
+def test_a_time_given_alone_ends_the_run_not_the_default_step_total(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """``--max-wall-s`` alone lifts the 3,000-step default (a user who gives a time means the
+    time); given neither, a run stops at 3,000 steps; given both, the steps given stay."""
+
+    def cli(*argv: str) -> int | None:
+        args = build_parser(["train", *argv]).parse_args(["train", *argv])
+        return build_config(args).train.total_steps
+
+    assert cli("--max-wall-s", "150") is None  # no step cap: the time ends the run
+    assert cli() == DEFAULT_TOTAL_STEPS == 3000
+    assert cli("--max-wall-s", "150", "--total-steps", "500") == 500
+    assert settings(task="pendulum", max_wall_s=150).train.total_steps is None
+    assert settings(task="pendulum").train.total_steps == 3000
+    assert settings(task="pendulum", max_wall_s=150, total_steps=500).train.total_steps == 500
+    assert TrainConfig(max_wall_s=150).total_steps is None
+    config = tmp_path / "timed.json"
+    config.write_text('{"train": {"max_wall_s": 150}}')
+    assert cli("--config", str(config)) is None
+    config.write_text('{"train": {"max_wall_s": 150, "total_steps": 800}}')
+    assert cli("--config", str(config)) == 800
+    assert cli("--config", str(config), "--total-steps", "900") == 900
+    # Told in --help, where the user reads the default.
+    text = " ".join(help_of(["train"], capsys).split())
+    assert "(default: 3000; none when --max-wall-s is given alone" in text

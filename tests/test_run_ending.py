@@ -22,6 +22,9 @@ def test_why_a_run_ended() -> None:
     assert why(env_steps=40, stopped_by="SIGINT") == "SIGINT"
     assert why(failed=True, stopped_by="SIGTERM") == "error"
     assert why(env_steps=40) == "no_workers"
+    # No step cap (a run given only --max-wall-s): only the time, a signal or no worker ends it.
+    assert why(env_steps=10**9, total_steps=None, out_of_time=True) == "max_wall_s"
+    assert why(env_steps=10**9, total_steps=None) == "no_workers"
 
 
 def test_a_first_part_is_the_whole_run() -> None:
@@ -71,3 +74,11 @@ def test_the_short_summary_says_why_the_run_ended_and_that_it_resumed() -> None:
                         "in 14.8 s")  # fmt: skip
     stopped = short(ended="stopped", stopped_by="SIGINT", ended_by="SIGINT")
     assert stopped[0] == f"Stopped early by SIGINT: Pendulum-v1 trained {done}."
+
+
+def test_a_run_with_no_step_cap_ended_at_its_time_not_before_a_total() -> None:
+    done = "1,200 env steps, 6 episodes, 300 learner steps in 9.5 s"
+    line = short(ended_by="max_wall_s", total_steps=None)[0]
+    assert line == f"Trained Pendulum-v1: {done}; ended at --max-wall-s."
+    capped = short(ended_by="max_wall_s", total_steps=5000)[0]
+    assert capped.endswith("; ended at --max-wall-s, before --total-steps.")

@@ -68,7 +68,7 @@ class SweepPlan:
     def budget(self) -> float:
         """The longest trial's total ``--time-attr``: ASHA's ``max_t``."""
         if self.cfg.time_attr == "env_steps":
-            return float(max(s.train.total_steps for s in self.checked))
+            return float(max(s.train.total_steps or 0 for s in self.checked))
         return float(max(s.train.max_wall_s or 0.0 for s in self.checked))
 
     def record(self, argv: list[str]) -> bytes:
@@ -110,12 +110,14 @@ def plan_sweep(cfg: SweepConfig) -> SweepPlan:
         if repr(setup) not in seen:
             seen.add(repr(setup))
             checked.append(setup)
-    wall = cfg.scheduler == "asha" and cfg.time_attr == "wall_s"
-    if wall and any(s.train.max_wall_s is None for s in checked):
-        raise ConfigError(
-            "--scheduler asha --time-attr wall_s: every trial needs "
-            "train.max_wall_s (--set train.max_wall_s=SECONDS)"
-        )
+    if cfg.scheduler == "asha":  # ASHA's max_t is the longest trial's limit (budget)
+        limits = {"env_steps": ("total_steps", "STEPS"), "wall_s": ("max_wall_s", "SECONDS")}
+        limit, unit = limits[cfg.time_attr]
+        if any(getattr(s.train, limit) is None for s in checked):
+            raise ConfigError(
+                f"--scheduler asha --time-attr {cfg.time_attr}: every trial needs "
+                f"train.{limit} (--set train.{limit}={unit})"
+            )
     return replace(plan, checked=tuple(checked))
 
 

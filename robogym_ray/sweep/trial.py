@@ -160,7 +160,9 @@ class TrainingTrial(tune.Trainable):
             run_name=name,
             resume=resume,
             init_from=None if resume else (self.copy or cfg.init_from),
-            total_steps=max(1, cfg.total_steps - self.before["env_steps"]),
+            total_steps=None
+            if cfg.total_steps is None
+            else max(1, cfg.total_steps - self.before["env_steps"]),
             max_wall_s=None if left_wall is None else max(1.0, left_wall),
         )
         settings = self.settings

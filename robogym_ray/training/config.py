@@ -8,6 +8,8 @@ from robogym_ray.config import check_address, check_ranges, check_ray_address
 from robogym_ray.errors import FieldError
 
 SIM_PATHS = ("inprocess", "grpc")
+DEFAULT_TOTAL_STEPS = 3000
+"""A run's env steps when it is given neither ``total_steps`` nor ``max_wall_s``."""
 
 
 @dataclass(frozen=True)
@@ -45,10 +47,12 @@ class TrainConfig:
     """Once total_steps are collected (or max_wall_s has passed), how long to wait for
     real-robot calls still running; a call that has not returned by then (a paused robot
     waits for an operator) is abandoned, counted, and its steps are not collected."""
-    total_steps: int = 3000
-    """Env steps to collect over all workers."""
+    total_steps: int | None = None
+    """Env steps to collect over all workers (default: 3000; none when --max-wall-s is given
+    alone: a run given a time runs for that time)."""
     max_wall_s: float | None = None
-    """Stop collecting after this many seconds of training, even before total_steps."""
+    """Stop collecting after this many seconds of training, even before total_steps; given
+    without --total-steps, the time alone ends the run."""
     logdir: str = "runs"
     """Where runs' files go when --storage is not given (a path; made absolute here)."""
     storage: str | None = None
@@ -177,6 +181,10 @@ class TrainConfig:
         return self.workers + len(self.real_robot)
 
     def __post_init__(self) -> None:
+        if self.total_steps is None and self.max_wall_s is None:
+            # Given neither, a short run; given only a time, the time ends it (None stays: no
+            # step cap), rather than a default step count the user never asked for.
+            object.__setattr__(self, "total_steps", DEFAULT_TOTAL_STEPS)
         checks = [
             (self.workers >= 0, "workers", ">= 0"),
             (self.rollout_workers >= 1, "workers", ">= 1 with no real robot"),
@@ -185,7 +193,11 @@ class TrainConfig:
                 "emulated_workers",
                 f"in [0, workers={self.workers}]",
             ),
-            (self.total_steps >= 1, "total_steps", ">= 1"),
+            (
+                self.total_steps is None or self.total_steps >= 1,
+                "total_steps",
+                ">= 1 (or null with max_wall_s: no step cap)",
+            ),
             (self.steps_per_call >= 1, "steps_per_call", ">= 1"),
             (self.envs_per_worker >= 1, "envs_per_worker", ">= 1"),
             (self.sim_path in SIM_PATHS, "sim_path", f"one of {', '.join(SIM_PATHS)}"),

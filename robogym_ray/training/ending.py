@@ -21,20 +21,29 @@ ENDINGS = {
     "no_workers": "ended with no rollout worker left",
 }
 """``ended_by`` of a run that was not stopped or failed, as the short summary says it."""
+NO_STEP_CAP_ENDING = "ended at --max-wall-s"
+"""``max_wall_s``'s ending for a run given no step total (``summary.json``'s ``total_steps``
+null): there was no total to end before."""
 
 
 def end_reason(
-    *, failed: bool, stopped_by: str | None, env_steps: int, total_steps: int, out_of_time: bool
+    *,
+    failed: bool,
+    stopped_by: str | None,
+    env_steps: int,
+    total_steps: int | None,
+    out_of_time: bool,
 ) -> str:
     """Why a run ended (``summary.json``'s ``ended_by``): ``error`` (``ended`` is failed), the
     signal that stopped it (``SIGINT``, ``SIGTERM``: ``ended`` is stopped), its step total
     reached (``total_steps``), its wall limit (``max_wall_s``) or no worker left to collect
-    (``no_workers``; the last three: ``ended`` is completed)."""
+    (``no_workers``; the last three: ``ended`` is completed). ``total_steps`` None: no step
+    cap (a run given only ``max_wall_s``)."""
     if failed:
         return "error"
     if stopped_by:
         return stopped_by
-    if env_steps >= total_steps:
+    if total_steps is not None and env_steps >= total_steps:
         return "total_steps"
     return "max_wall_s" if out_of_time else "no_workers"
 
@@ -44,6 +53,7 @@ def run_parts(
     earlier: Mapping[str, Any] | None,
     resumed: bool,
     first_learner_step: int = 0,
+    checkpointed: Mapping[str, Any] | None = None,
 ) -> tuple[dict[str, Any], dict[str, Any]]:
     """``(this_part, whole_run)`` of ``summary.json``.
 
@@ -60,6 +70,12 @@ def run_parts(
         before = dict(earlier["whole_run"])
     elif earlier is not None:
         before = {**{k: earlier.get(k, 0) for k in COUNTS}, "parts": 1, "complete": True}
+    elif checkpointed is not None:
+        before = {k: checkpointed.get(k, 0) for k in COUNTS}
+        # The learner's own count at this part's start (the steps its checkpoint holds),
+        # not the record's, which may count steps taken after that checkpoint was written.
+        before["learner_steps"] = first_learner_step or int(before["learner_steps"])
+        before.update(parts=int(checkpointed.get("parts", 1)), complete=True)
     elif resumed:
         before = {"parts": 1, "learner_steps": first_learner_step, "complete": False}
     else:
@@ -90,7 +106,10 @@ def first_line(summary: Mapping[str, Any]) -> str:
     if summary.get("ended") == "stopped":
         by = summary.get("stopped_by", "a signal")
         return f"Stopped early by {by}: {summary['task']}{part} trained {done}."
-    why = ENDINGS.get(summary.get("ended_by", ""))
+    ended_by = summary.get("ended_by", "")
+    why = ENDINGS.get(ended_by)
+    if ended_by == "max_wall_s" and "total_steps" in summary and summary["total_steps"] is None:
+        why = NO_STEP_CAP_ENDING
     return f"Trained {summary['task']}{part}: {done}" + (f"; {why}." if why else ".")
 
 

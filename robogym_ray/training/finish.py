@@ -97,6 +97,7 @@ def finish(
         server_nodes=p.server_nodes(), logdir=p.storage.location(),
         storage={"node": node_label() if p.storage.is_local else "(object store)"},
         ended=ended, ended_by=ended_by, **_parts(p, run_stats, final, wall_s),
+        total_steps=p.cfg.total_steps,  # null: no step cap (a run given only --max-wall-s)
     )  # fmt: skip
     if stopped_by:
         summary["stopped_by"] = stopped_by

@@ -231,12 +231,13 @@ class TrainingLoop:
         return self.failure is not None
 
     def _done(self, in_flight: int = 0) -> bool:
-        """Whether collecting should stop: enough steps (counting those in flight), the wall
-        budget spent, or a stop asked for (SIGTERM)."""
+        """Whether collecting should stop: enough steps (counting those in flight; a run with
+        no step cap has none), the wall budget spent, or a stop asked for (SIGTERM)."""
+        total = self.cfg.total_steps
         return (
             self.stop.is_set()
             or self._out_of_time()
-            or self.stats.env_steps + in_flight >= self.cfg.total_steps
+            or (total is not None and self.stats.env_steps + in_flight >= total)
         )
 
     def _out_of_time(self) -> bool:

@@ -69,6 +69,10 @@ def test_bad_spaces_are_refused_before_ray_starts(
     assert "drop --space" in refused(capfd, "--resume", "x", "--space", "d4pg.sigma=0.1")
     err = refused(capfd, *base, "--scheduler", "asha", "--time-attr", "wall_s")
     assert "max_wall_s" in err
+    # A time alone lifts a trial's step total: ASHA counting env steps has no budget then.
+    timed = ["--storage", str(tmp_path), "--set", "task=pendulum", "max_wall_s=60"]
+    err = refused(capfd, *timed, "--scheduler", "asha")
+    assert "--time-attr env_steps: every trial needs train.total_steps" in err
 
 
 def test_a_trials_bundles_hold_its_actors_one_each() -> None:
