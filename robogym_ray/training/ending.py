@@ -53,7 +53,6 @@ def run_parts(
     earlier: Mapping[str, Any] | None,
     resumed: bool,
     first_learner_step: int = 0,
-    checkpointed: Mapping[str, Any] | None = None,
 ) -> tuple[dict[str, Any], dict[str, Any]]:
     """``(this_part, whole_run)`` of ``summary.json``.
 
@@ -70,12 +69,6 @@ def run_parts(
         before = dict(earlier["whole_run"])
     elif earlier is not None:
         before = {**{k: earlier.get(k, 0) for k in COUNTS}, "parts": 1, "complete": True}
-    elif checkpointed is not None:
-        before = {k: checkpointed.get(k, 0) for k in COUNTS}
-        # The learner's own count at this part's start (the steps its checkpoint holds),
-        # not the record's, which may count steps taken after that checkpoint was written.
-        before["learner_steps"] = first_learner_step or int(before["learner_steps"])
-        before.update(parts=int(checkpointed.get("parts", 1)), complete=True)
     elif resumed:
         before = {"parts": 1, "learner_steps": first_learner_step, "complete": False}
     else:
