@@ -82,3 +82,19 @@ def test_a_run_with_no_step_cap_ended_at_its_time_not_before_a_total() -> None:
     assert line == f"Trained Pendulum-v1: {done}; ended at --max-wall-s."
     capped = short(ended_by="max_wall_s", total_steps=5000)[0]
     assert capped.endswith("; ended at --max-wall-s, before --total-steps.")
+
+
+def test_an_interval_evaluators_figures_say_they_span_more_of_the_run() -> None:
+    """An evaluator started every 15 s plays its last 100 episodes over much of the run, by
+    older policies: its figures are not comparable with a back-to-back evaluator's."""
+    history = [{"wall_s": 15.0 * (i + 1)} for i in range(200)]  # one episode per call
+    rates = {"eval/success_rate": 0.9, "eval/collision_rate": 0.0, "eval/timeout_rate": 0.1}
+    facts = {**rates, "eval/episodes": 200, "eval_history": history, "wall_s": 3000.0}
+    lines = short(**facts, eval_interval_s=15.0)
+    at = next(i for i, line in enumerate(lines) if "greedy evaluation" in line)
+    assert lines[at + 1] == (
+        "    (evaluator calls every 15 s, these episodes over the last 25.0 min: not comparable "
+        "with a back-to-back evaluator's)"
+    )
+    assert not any("comparable" in line for line in short(**facts, eval_interval_s=0.0))
+    assert not any("comparable" in line for line in short(**facts))  # an older summary

@@ -78,6 +78,23 @@ def _rates(summary: dict[str, Any], prefix: str) -> str:
     )
 
 
+def _spaced_note(summary: dict[str, Any], counted: int) -> str:
+    """The greedy evaluation's caveat when the evaluator ran at an interval: its last episodes
+    were played over a long stretch of the run, by older policies, so its figures cannot be set
+    beside a back-to-back evaluator's (whose last 100 episodes are its last minutes)."""
+    interval = f"{summary['eval_interval_s']:g}"
+    history, total = summary.get("eval_history") or [], summary.get("eval/episodes", 0)
+    span = ""
+    if history and total:  # the calls that played the counted episodes are the last ones
+        per_call = max(1, round(total / len(history)))
+        before = len(history) - min(len(history), -(-counted // per_call))
+        started = history[before - 1]["wall_s"] if before else 0.0  # after the call before
+        minutes = (summary["wall_s"] - started) / 60
+        span = f", these episodes over the last {minutes:.1f} min"
+    caveat = "not comparable with a back-to-back evaluator's"
+    return f"    (evaluator calls every {interval} s{span}: {caveat})"
+
+
 def summary_text(summary: dict[str, Any]) -> str:
     """A few lines for a person: how the run ended, how it went, where its files are."""
     from robogym_ray.training.stats import run_root
@@ -103,6 +120,8 @@ def summary_text(summary: dict[str, Any]) -> str:
             else _rates(summary, "eval")
         )
         lines.append(f"  greedy evaluation ({last} episodes): {measure}")
+        if summary.get("eval_interval_s"):
+            lines.append(_spaced_note(summary, min(100, total)))
     restarts = sum(summary["restarts"].values())
     node = summary.get("storage", {}).get("node", "")
     lines += [

@@ -98,6 +98,7 @@ def finish(
         storage={"node": node_label() if p.storage.is_local else "(object store)"},
         ended=ended, ended_by=ended_by, **_parts(p, run_stats, final, wall_s),
         total_steps=p.cfg.total_steps,  # null: no step cap (a run given only --max-wall-s)
+        eval_interval_s=p.cfg.eval_interval_s,  # > 0: eval/* span more of the run (summary_text)
     )  # fmt: skip
     if stopped_by:
         summary["stopped_by"] = stopped_by
