@@ -1,8 +1,9 @@
 """``robogym-ray``: one command-line entry point with a sub-command per job.
 
 Each sub-command lives in its own module exposing ``add_arguments(parser)`` and
-``run(args) -> int``; the table below is the only place that lists them, and modules are imported
-only when their command runs (``--help`` stays fast and does not import Ray or torch).
+``run(args) -> int`` (``args.argv``: the command line as given); the table below is the only
+place that lists them, and modules are imported only when their command runs (``--help`` stays
+fast and does not import Ray or torch).
 """
 
 from __future__ import annotations
@@ -59,6 +60,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"error: {RETIRED[named]}", file=sys.stderr)
         return 2
     args = build_parser(argv).parse_args(argv)
+    args.argv = argv  # the command line as given (sys.argv's or a caller's): a sweep records it
     logging.basicConfig(level=args.log_level.upper(), format="%(asctime)s %(name)s %(message)s")
     module = importlib.import_module(COMMANDS[args.command][0])
     try:

@@ -11,19 +11,37 @@ from robogym_ray.sweep.config import SweepConfig
 
 HELP_GROUPS: dict[str, tuple[str, ...]] = {
     "the trainings (a base config, settings on top, a search space)": (
-        "config", "set", "space", "seeds", "samples"),
-    "scheduling": ("max_concurrent", "scheduler", "metric", "mode", "time_attr", "grace_period",
-                   "reduction_factor"),
+        "config",
+        "set",
+        "space",
+        "seeds",
+        "samples",
+    ),
+    "scheduling": (
+        "max_concurrent",
+        "scheduler",
+        "metric",
+        "mode",
+        "time_attr",
+        "grace_period",
+        "reduction_factor",
+    ),
     "placement (each trial's actors in a placement group of its own)": (
-        "trial_cpus", "placement", "address", "num_cpus"),
+        "trial_cpus",
+        "placement",
+        "address",
+        "num_cpus",
+    ),
     "storage": ("name", "storage", "resume"),
-}  # fmt: skip
+}
 """``sweep --help``'s sections: every SweepConfig field in one."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.usage = ("%(prog)s [--config FILE] [--set KEY=VALUE ...] [--space KEY=SPEC ...] "
-                    "[options]\n       %(prog)s summary NAME [--storage STORAGE]")  # fmt: skip
+    parser.usage = (
+        "%(prog)s [--config FILE] [--set KEY=VALUE ...] [--space KEY=SPEC ...] "
+        "[options]\n       %(prog)s summary NAME [--storage STORAGE]"
+    )
     parser.epilog = (
         "example: robogym-ray sweep --config experiments/configs/navigation.json "
         "--space d4pg.sigma=0.2,0.4 --seeds 0 1 --scheduler asha --name nav-sigma"
@@ -31,12 +49,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_config_args(parser, SweepConfig, groups=HELP_GROUPS)
     actions = parser.add_subparsers(dest="sweep_action", metavar="summary")
     summary = actions.add_parser(
-        "summary", prog="robogym-ray sweep summary",
+        "summary",
+        prog="robogym-ray sweep summary",
         help="the sweep's table and figure (written into its folder)",
         description="One table of the sweep's trials (settings, final and best metric, time to "
         "90 and 95 %% success, env steps/s, how each ended) and one figure (success against "
         "wall time) written beside it; the best trial's checkpoint.",
-    )  # fmt: skip
+    )
     summary.add_argument("sweep_name", metavar="NAME", help="the sweep's folder name")
     summary.add_argument(
         "--storage",
@@ -59,12 +78,14 @@ def run(args: argparse.Namespace) -> int:
     from robogym_ray.sweep.report import summarize
     from robogym_ray.sweep.tuner import run_sweep
 
-    argv = sys.argv[sys.argv.index("sweep") + 1 :] if "sweep" in sys.argv else []
-    grid = run_sweep(plan, argv)
+    # The command as cli.main received it (a Python caller's list, not this process's sys.argv).
+    grid = run_sweep(plan, args.argv[args.argv.index("sweep") + 1 :])
     for result in grid:
         if result.error is not None:  # its one line: the trial's own error, not Tune's wrapping
-            print(f"trial {result.path.rsplit('/', 1)[-1]}: {_last_line(result.error)}",
-                  file=sys.stderr)  # fmt: skip
+            print(
+                f"trial {result.path.rsplit('/', 1)[-1]}: {_last_line(result.error)}",
+                file=sys.stderr,
+            )
     print(summarize(plan.name, plan.root), flush=True)
     return 0
 

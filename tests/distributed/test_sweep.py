@@ -53,6 +53,9 @@ def test_four_trials_two_at_a_time_and_asha_stops_the_worse(tmp_path: Path) -> N
             "--grace-period", "4", "--storage", str(tmp_path), "--name", "four"]  # fmt: skip
     assert main(["sweep", *argv]) == 0
     sweep = tmp_path / "four"
+    # The command main() was given, not this process's sys.argv (pytest's).
+    record = json.loads((sweep / "sweep.json").read_text())
+    assert record["command"] == ["robogym-ray", "sweep", *argv]
     results, runs = trial_results(sweep), run_summaries(sweep)
     assert len(results) == 4 and len(runs) == 4
     for run in runs.values():  # every trial's own files under the sweep's storage
