@@ -1,5 +1,6 @@
-"""The package's layers, checked from the source: no import cycle between its folders, Ray only
-where actors are defined and driven, and a plain Sim env that pulls in neither Ray nor torch."""
+"""The package's layers, checked from the source: no import cycle between its folders nor
+between its modules, Ray only where actors are defined and driven, and a plain Sim env that
+pulls in neither Ray nor torch."""
 
 from __future__ import annotations
 
@@ -7,6 +8,7 @@ import ast
 import subprocess
 import sys
 from collections import defaultdict
+from collections.abc import Container
 from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parents[1] / "robogym_ray"
@@ -70,6 +72,91 @@ def test_no_import_cycle_between_folders() -> None:
     graph = folder_graph()
     assert {"envs", "learner", "experience", "distributed", "training"} <= set(graph)
     assert find_cycle(graph) is None, " -> ".join(find_cycle(graph) or [])
+
+
+def module_name(path: Path) -> str:
+    """``robogym_ray/training/setup.py`` -> ``robogym_ray.training.setup``; a package's
+    ``__init__.py`` is the package."""
+    parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def module_graph() -> dict[str, set[str]]:
+    """Which of the package's modules each imports, lazy imports included: an import names the
+    longest module it starts with (``from robogym_ray.training import setup`` the module
+    ``setup``, ``from robogym_ray.learner.checkpoint import RUN_CHECKPOINT`` ``checkpoint``)."""
+    paths = {module_name(p): p for p in PACKAGE.rglob("*.py")}
+    graph: dict[str, set[str]] = {}
+    for name, path in paths.items():
+        targets = set()
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Import):
+                wanted = [alias.name for alias in node.names]
+            elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+                wanted = [f"{node.module}.{alias.name}" for alias in node.names]
+            else:
+                continue
+            found = (longest_module(full, paths) for full in wanted)
+            targets.update(m for m in found if m is not None and m != name)
+        graph[name] = targets
+    return graph
+
+
+def longest_module(name: str, modules: Container[str]) -> str | None:
+    """The longest of ``modules`` that the dotted ``name`` starts with."""
+    parts = name.split(".")
+    for n in range(len(parts), 0, -1):
+        if ".".join(parts[:n]) in modules:
+            return ".".join(parts[:n])
+    return None
+
+
+def import_loops(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The graph's loops: each set of nodes that reach one another (a strongly connected
+    component of more than one node), sorted."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    loops: list[list[str]] = []
+
+    def visit(node: str) -> None:  # Tarjan's algorithm
+        index[node] = low[node] = len(index)
+        stack.append(node)
+        for nxt in sorted(graph.get(node, ())):
+            if nxt not in index:
+                visit(nxt)
+                low[node] = min(low[node], low[nxt])
+            elif nxt in stack:
+                low[node] = min(low[node], index[nxt])
+        if low[node] == index[node]:
+            component = []
+            while True:
+                member = stack.pop()
+                component.append(member)
+                if member == node:
+                    break
+            if len(component) > 1:
+                loops.append(sorted(component))
+
+    for start in sorted(graph):
+        if start not in index:
+            visit(start)
+    return sorted(loops)
+
+
+def test_no_import_loop_between_modules() -> None:
+    """No module imports one that imports it back, inside a folder too (``training/api.py`` and
+    ``training/command.py`` once did): each loop is listed by its modules."""
+    graph = module_graph()
+    assert "robogym_ray.training.setup" in graph["robogym_ray.training.program"]
+    loops = import_loops(graph)
+    assert loops == [], "\n".join(" <-> ".join(loop) for loop in loops)
+
+
+def test_the_loop_finder_finds_every_loop() -> None:
+    graph = {"a": {"b"}, "b": {"a", "c"}, "c": {"d"}, "d": {"c"}, "e": {"a"}}
+    assert import_loops(graph) == [["a", "b"], ["c", "d"]]
+    assert import_loops({"a": {"b"}, "b": set()}) == []
 
 
 def test_the_cycle_finder_finds_a_cycle() -> None:
