@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import logging
+import os
 import sys
 from collections.abc import Sequence
 
@@ -54,6 +55,9 @@ def build_parser(argv: Sequence[str]) -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    # gRPC's C core logs each failed TLS handshake at INFO on stderr, a line beside ours that
+    # says the same; it reads the level once, when grpc is first imported (after this line).
+    os.environ.setdefault("GRPC_VERBOSITY", "ERROR")
     argv = list(sys.argv[1:] if argv is None else argv)
     named = next((a for a in argv if a in COMMANDS or a in RETIRED), None)
     if named in RETIRED:
