@@ -12,6 +12,7 @@ import grpc
 import pytest
 import ray
 
+from robogym_ray import children
 from robogym_ray.protocol import server_manager_pb2_grpc as sm_grpc
 from robogym_ray.supervision.manager_service import serve_manager
 from robogym_ray.supervision.spawners import InProcessSpawner
@@ -45,7 +46,7 @@ def x_display() -> Iterator[str]:
     if binary is None:
         pytest.skip("no Xvfb on this machine (Debian: apt-get install xvfb; .ci/run installs it)")
     read, write = os.pipe()
-    proc = subprocess.Popen(
+    proc = children.popen(
         [binary, "-displayfd", str(write), "-screen", "0", "800x600x24", "-nolisten", "tcp"],
         pass_fds=(write,),
         stdout=subprocess.DEVNULL,

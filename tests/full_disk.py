@@ -21,6 +21,8 @@ from typing import Any
 
 import pytest
 
+from robogym_ray import children
+
 REPO = Path(__file__).resolve().parents[1]
 _MOUNT = 'mount -t tmpfs -o "size=$1" tmpfs "$2" && shift 2 && exec "$@"'
 
@@ -34,7 +36,7 @@ def _unshare() -> tuple[list[str] | None, str]:
     with tempfile.TemporaryDirectory() as mountpoint:
         for cmd in tries:
             try:
-                done = subprocess.run(
+                done = children.run(
                     [*cmd, "sh", "-c", _MOUNT, "sh", "64k", mountpoint, "true"],
                     capture_output=True, text=True, timeout=30,
                 )  # fmt: skip
@@ -61,7 +63,7 @@ def run_on_tmpfs(mountpoint: Path, size: str, probe: str, *args: str, timeout: f
     env = {**os.environ, "PROBE_REPORT": str(report)}
     module, function = probe.split(":")
     code = f"import sys; from {module} import {function}; {function}(*sys.argv[1:])"
-    done = subprocess.run(
+    done = children.run(
         [*cmd, "sh", "-c", _MOUNT, "sh", size, str(mountpoint), sys.executable, "-c", code,
          *args],
         cwd=REPO, env=env, capture_output=True, text=True, timeout=timeout,

@@ -11,7 +11,6 @@ level, so a library's own print (torch's warnings) would count as a second line 
 from __future__ import annotations
 
 import json
-import subprocess
 import sys
 from pathlib import Path
 
@@ -19,6 +18,7 @@ import pytest
 import torch
 
 import robogym_ray
+from robogym_ray import children
 from robogym_ray.cli import main
 from robogym_ray.errors import ConfigError
 from robogym_ray.learner.checkpoint import replay_path
@@ -302,7 +302,7 @@ def test_one_line_in_a_fresh_process(tmp_path: Path) -> None:
     """The whole process: no torch warning or pybullet banner before the error line."""
     source = tmp_path / "learner.pt"
     source.touch()
-    out = subprocess.run(
+    out = children.run(
         [sys.executable, "-m", "robogym_ray.cli", "train", "--init-from", str(source),
          "--logdir", str(tmp_path / "runs")],
         capture_output=True, text=True, timeout=120,

@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import json
-import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+
+from robogym_ray import children
 
 NAV = "RoboGymRay/ObstacleAvoidanceMir100Sim-v0"
 
@@ -34,7 +35,7 @@ def test_evaluate_writes_one_video_per_requested_episode_and_paths(
         "--env-id", NAV, "--episodes", "3", "--max-steps", "12", "--seed", "50",
         "--video", str(videos), "--video-episodes", "2", "--paths", "--out", str(out),
     ]  # fmt: skip
-    done = subprocess.run(cmd, capture_output=True, text=True, timeout=240)
+    done = children.run(cmd, capture_output=True, text=True, timeout=240)
     assert done.returncode == 0, done.stderr[-2000:]
     episodes = json.loads((out / "evaluation.json").read_text())["episodes"]
     files = sorted(videos.glob("*.mp4"))

@@ -12,6 +12,7 @@ import sys
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 
+from robogym_ray import children
 from robogym_ray.config import check_port
 from robogym_ray.errors import ConfigError
 
@@ -88,8 +89,9 @@ def serve_process(args: Sequence[str], timeout_s: float = 20.0) -> Iterator[str]
     """
     cmd = [sys.executable, "-m", "robogym_ray.cli", "serve", *args]
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
-                            env=env)  # fmt: skip
+    # The server ends with this process, however it ends (robogym_ray.children).
+    proc = children.popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
+                          env=env)  # fmt: skip
     try:
         line = proc.stdout.readline().strip() if proc.stdout else ""
         if not line.startswith("listening on "):

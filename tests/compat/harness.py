@@ -21,6 +21,8 @@ from typing import Any
 
 import pytest
 
+from robogym_ray import children
+
 SCRIPTS = Path(__file__).parent / "robo_gym_side"
 
 
@@ -41,7 +43,7 @@ def start_cli(args: list[str], log: Path, timeout: float, env: dict[str, str]) -
         pytest.fail.Exception: it exited or stayed silent for ``timeout`` seconds.
     """
     with log.open("w") as err:
-        proc = subprocess.Popen(
+        proc = children.popen(
             [sys.executable, "-m", "robogym_ray.cli", *args],
             stdout=subprocess.PIPE,
             stderr=err,
@@ -87,7 +89,7 @@ def run_robo_gym(python: Path, script: str, *args: str, timeout: float = 180) ->
     with tempfile.NamedTemporaryFile(suffix=".json", delete=False) as out:
         out_path = Path(out.name)
     try:
-        done = subprocess.run(
+        done = children.run(
             [str(python), str(SCRIPTS / script), *args, "--out", str(out_path)],
             capture_output=True,
             text=True,

@@ -25,6 +25,8 @@ from pathlib import Path
 
 import pytest
 
+from robogym_ray import children
+
 PINS: tuple[str, ...] = (
     "robo-gym==2.0.1",
     "robo-gym-server-modules==0.3.0.1",
@@ -69,7 +71,7 @@ def venv_python(venv: Path) -> Path:
 
 
 def _run(cmd: list[str], timeout: float) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, check=False)
+    return children.run(cmd, capture_output=True, text=True, timeout=timeout, check=False)
 
 
 def _build(venv: Path) -> None:

@@ -10,7 +10,6 @@ package as ours, which one process cannot hold twice.
 from __future__ import annotations
 
 import json
-import subprocess
 import sys
 import textwrap
 from concurrent import futures
@@ -21,6 +20,7 @@ import gymnasium as gym
 import pytest
 
 import robogym_ray  # noqa: F401 - registers the ids
+from robogym_ray import children
 from robogym_ray.errors import ConfigError
 from robogym_ray.protocol import robot_server_pb2_grpc as pb_grpc
 from robogym_ray.protocol.client import RobotServerClient
@@ -103,7 +103,7 @@ def test_a_client_of_masters_proto_gets_our_servers_arguments(tmp_path: Path) ->
     (tmp_path / "robot_server.proto").write_text(MASTER_PROTO)
     handles = [start_robot_server(r, options=o, seed=0) for r, (o, _) in SERVERS.items()]
     try:
-        run = subprocess.run(
+        run = children.run(
             [
                 sys.executable,
                 "-c",

@@ -14,6 +14,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager, suppress
 from pathlib import Path
 
+from robogym_ray import children
 from tests.distributed.conftest import free_port
 
 REPO = Path(__file__).resolve().parents[2]
@@ -79,7 +80,7 @@ def ray_node(
     """A node; ``wrap``: a command line the node's `ray start` runs under (e.g. a private mount
     namespace, to give it a disk of its own). A node killed already (a machine lost) is fine."""
     log = open(Path(temp_dir) / f"node-{len(os.listdir(temp_dir))}.log", "w")  # noqa: SIM115
-    proc = subprocess.Popen(
+    proc = children.popen(
         [*(wrap or []), *RAY, "start", "--block", "--disable-usage-stats", *args],
         env=env or cluster_env(),
         stdout=log,

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import json
 import shutil
-import subprocess
 import sys
 import tempfile
 import time
@@ -21,6 +20,7 @@ from pathlib import Path
 
 import pytest
 
+from robogym_ray import children
 from tests.distributed.cluster import (
     RAY,
     REPO,
@@ -87,7 +87,7 @@ def test_ray_job_submit_runs_a_short_training(two_nodes: TwoNodes) -> None:
     ]  # fmt: skip
     deadline = time.monotonic() + 90
     while True:  # the head's job agent starts after its CPUs show: Ray says "try again later"
-        out = subprocess.run(cmd, env=c.env, capture_output=True, text=True, timeout=400)
+        out = children.run(cmd, env=c.env, capture_output=True, text=True, timeout=400)
         if "No available agent" not in out.stderr or time.monotonic() > deadline:
             break
         time.sleep(1)
@@ -113,7 +113,7 @@ def test_two_nodes_robot_servers_on_the_second(two_nodes: TwoNodes, tmp_path: Pa
         "--envs-per-worker", "1", "--server-resource", "robot_node",
         "--no-progress", "--no-evaluator",
     ]  # fmt: skip
-    out = subprocess.run(
+    out = children.run(
         cmd, env=two_nodes.env, capture_output=True, text=True, timeout=400, cwd=REPO
     )
     assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-3000:]

@@ -19,6 +19,7 @@ from typing import Any
 
 import pytest
 
+from robogym_ray import children
 from tests.full_disk import report, run_on_tmpfs, tmp_files
 
 pytestmark = [pytest.mark.ray, pytest.mark.slow]
@@ -57,7 +58,7 @@ def probe(disk: str, config: str, room_fraction: str) -> None:
         "--num-cpus", "2",
     ]  # fmt: skip
     started = time.monotonic()
-    proc = subprocess.Popen(
+    proc = children.popen(
         cmd, env={**os.environ, "RAY_TMPDIR": ray_tmp, "RAY_AUTH_MODE": "disabled"},
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )  # fmt: skip

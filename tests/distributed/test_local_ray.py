@@ -11,12 +11,13 @@ from __future__ import annotations
 import ipaddress
 import json
 import os
-import subprocess
 import sys
 import tempfile
 from pathlib import Path
 
 import pytest
+
+from robogym_ray import children
 
 pytestmark = [
     pytest.mark.ray,
@@ -108,7 +109,7 @@ def _listeners_of(mode: str) -> dict:
     env.pop("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", None)
     # A short path under /tmp (Ray's socket paths), removed with the session's files after.
     with tempfile.TemporaryDirectory(prefix="rgl", dir="/tmp") as temp_dir:
-        done = subprocess.run(
+        done = children.run(
             [sys.executable, "-c", _CHILD, mode, temp_dir],
             capture_output=True,
             text=True,

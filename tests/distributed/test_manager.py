@@ -19,6 +19,7 @@ from typing import Any
 import grpc
 import pytest
 
+from robogym_ray import children
 from robogym_ray.protocol import robot_server_pb2 as rs
 from robogym_ray.protocol import robot_server_pb2_grpc as rs_grpc
 from robogym_ray.protocol import server_manager_pb2 as sm
@@ -143,7 +144,7 @@ def test_manager_command_serves_and_stops_on_sigterm() -> None:
     port = free_port()
     with tempfile.TemporaryDirectory(prefix="rgm", dir="/tmp") as tmp:
         env = {**os.environ, "RAY_TMPDIR": tmp, "RAY_ADDRESS": ""}
-        proc = subprocess.Popen(
+        proc = children.popen(
             [
                 sys.executable,
                 "-m",

@@ -29,6 +29,7 @@ import numpy as np
 import pytest
 import torch
 
+from robogym_ray import children
 from tests.distributed.cluster import (
     agent_ports,
     alive_nodes,
@@ -48,7 +49,7 @@ RUN = "mn"
 def can_unshare() -> bool:
     probe = ["unshare", "-m", "--propagation", "private", "true"]
     try:
-        return subprocess.run(probe, capture_output=True, timeout=10).returncode == 0
+        return children.run(probe, capture_output=True, timeout=10).returncode == 0
     except (OSError, subprocess.TimeoutExpired):
         return False
 
@@ -87,7 +88,7 @@ import json, ray
 ray.init(address="127.0.0.1:{port}", logging_level="ERROR", namespace="robogym-ray")
 {body}
 """
-    out = subprocess.run(
+    out = children.run(
         [sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=180
     )
     line = [x for x in out.stdout.splitlines() if x.startswith("ANSWER")]
@@ -166,8 +167,8 @@ def test_node_losses_on_a_cluster_of_separate_disks(temp_dir: str, tmp_path: Pat
             with ray_node(worker_node(port, temps[2]), temp_dir, own_disk, env) as b:
                 wait_for(lambda: cluster_cpus(address) >= 4, 180, "node B")
                 # 1. Storage that node B cannot see: refused before anything starts.
-                out = subprocess.run(train(port, private, "--total-steps", "100"), env=env,
-                                     capture_output=True, text=True, timeout=300)  # fmt: skip
+                out = children.run(train(port, private, "--total-steps", "100"), env=env,
+                                   capture_output=True, text=True, timeout=300)  # fmt: skip
                 assert out.returncode == 2, out.stderr[-3000:]
                 line = out.stderr.strip().splitlines()[-1]
                 assert line.startswith(f"error: storage {private} is not shared by the "
@@ -176,7 +177,7 @@ def test_node_losses_on_a_cluster_of_separate_disks(temp_dir: str, tmp_path: Pat
                 assert list(private.iterdir()) == []  # no run folder, no marker left
 
                 # 2. A training on shared storage; the learner only where learner_node is.
-                driver = subprocess.Popen(
+                driver = children.popen(
                     train(port, shared, "--workers", "2", "--envs-per-worker", "2",
                           "--total-steps", "10000000", "--max-wall-s", "360",
                           "--learner-resource", "learner_node", "--checkpoint-every", "100",

@@ -17,6 +17,7 @@ from typing import Any
 
 import pytest
 
+from robogym_ray import children
 from robogym_ray.realrobot.robot import RobotPausedError
 from robogym_ray.realrobot.safety import (
     SafetyConfig,
@@ -29,7 +30,7 @@ ray = pytest.importorskip("ray")
 
 
 def _serve(port: int = 0) -> tuple[subprocess.Popen[str], str]:
-    proc = subprocess.Popen(
+    proc = children.popen(
         [
             sys.executable,
             "-m",
@@ -173,7 +174,7 @@ def test_server_error_pauses_and_operator_resumes_from_the_cli(
     proc2, _ = _serve(port)  # the operator brings the driver back
     try:
         gcs = ray.get_runtime_context().gcs_address
-        out = subprocess.run(
+        out = children.run(
             [sys.executable, "-m", "robogym_ray.cli", "resume-robot", "mir-cli"]
             + ["--ray-address", gcs],
             capture_output=True,

@@ -14,6 +14,7 @@ from pathlib import Path
 import pytest
 import torch
 
+from robogym_ray import children
 from robogym_ray.training.config import TrainConfig
 from robogym_ray.training.setup import run_place
 
@@ -28,8 +29,8 @@ def test_ctrl_c_stops_the_run_with_its_checkpoint_and_summary(tmp_path: Path) ->
             "--run-name", "sig", "--checkpoint-every", "50", "--no-progress", "--num-cpus", "2",
             "--json"]  # fmt: skip
     env = {**os.environ, "RAY_AUTH_MODE": "disabled"}
-    proc = subprocess.Popen(argv, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True)  # fmt: skip
+    proc = children.popen(argv, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                          text=True)  # fmt: skip
     first = tmp_path / "sig" / "checkpoints" / "learner.pt"
     deadline = time.monotonic() + 240
     while not first.exists() and proc.poll() is None and time.monotonic() < deadline:

@@ -15,6 +15,8 @@ from typing import Any
 
 import pytest
 
+from robogym_ray import children
+
 BUCKET = "robogym"
 
 
@@ -53,7 +55,7 @@ def s3(s3_server: str, monkeypatch: pytest.MonkeyPatch) -> Any:
 
 def cli(*args: str, timeout: float = 400) -> subprocess.CompletedProcess:
     env = {**os.environ, "RAY_AUTH_MODE": "disabled"}
-    return subprocess.run(
+    return children.run(
         [sys.executable, "-m", "robogym_ray.cli", *args],
         env=env, capture_output=True, text=True, timeout=timeout,
     )  # fmt: skip

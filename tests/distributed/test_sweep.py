@@ -15,6 +15,7 @@ from typing import Any
 import pytest
 import ray
 
+from robogym_ray import children
 from robogym_ray.cli import main
 
 pytestmark = [pytest.mark.ray, pytest.mark.usefixtures("ray_cluster")]
@@ -84,8 +85,8 @@ def test_a_sweep_goes_on_from_its_checkpoints_after_its_driver_is_killed(
     argv = [*BASE, "total_steps=1000", "checkpoint_every=100", "--seeds", "0", "1",
             "--max-concurrent", "2", "--storage", str(tmp_path), "--name", "killed",
             "--address", ray.get_runtime_context().gcs_address]  # fmt: skip
-    driver = subprocess.Popen([sys.executable, "-m", "robogym_ray.cli", "sweep", *argv],
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
+    driver = children.popen([sys.executable, "-m", "robogym_ray.cli", "sweep", *argv],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
     sweep = tmp_path / "killed"
     try:
         deadline = time.monotonic() + 120

@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 import ray
 
+from robogym_ray import children
 from robogym_ray.distributed import remote
 from robogym_ray.errors import ConfigError
 from robogym_ray.robots.emulation import EmulationConfig
@@ -255,7 +256,7 @@ def test_a_paused_real_robot_does_not_keep_a_run_from_ending(tmp_path: Path) -> 
     never re-queued and the run never ended."""
     cmd = [sys.executable, "-m", "robogym_ray.cli", "serve", "--robot", "mir100",
            "--scene", "lab_6x8", "--real-time", "--port", "0"]  # fmt: skip
-    server = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    server = children.popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
     assert server.stdout is not None
     address = server.stdout.readline().strip().removeprefix("listening on ")
     cfg = TrainConfig(

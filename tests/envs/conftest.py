@@ -13,6 +13,7 @@ from typing import Any
 import grpc
 import pytest
 
+from robogym_ray import children
 from robogym_ray.protocol import robot_server_pb2 as pb
 from robogym_ray.protocol import robot_server_pb2_grpc as pb_grpc
 
@@ -73,7 +74,7 @@ def serve_subprocess() -> Iterator[Callable[..., str]]:
 
     def start(robot: str, *args: str) -> str:
         cmd = [sys.executable, "-m", "robogym_ray.cli", "serve", "--robot", robot, "--port", "0"]
-        proc = subprocess.Popen([*cmd, *args], stdout=subprocess.PIPE, text=True)
+        proc = children.popen([*cmd, *args], stdout=subprocess.PIPE, text=True)
         procs.append(proc)
         deadline = time.monotonic() + 60
         assert proc.stdout is not None

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 import robogym_ray  # noqa: F401 - registers the ids
+from robogym_ray import children
 from robogym_ray.envs import SIM_ENV_IDS
 from robogym_ray.envs.render import RenderConfig
 from robogym_ray.envs.render.mir100 import ROBOT
@@ -183,14 +184,14 @@ def test_human_mode_shows_a_window_under_a_real_x_server(x_display: str, tmp_pat
         "env.close()\n"
     )
     environ = {**os.environ, "DISPLAY": x_display, "SDL_AUDIODRIVER": "dummy"}
-    proc = subprocess.Popen(
+    proc = children.popen(
         [sys.executable, str(script)], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
         env=environ, text=True,
     )  # fmt: skip
     try:
         assert proc.stdout is not None and proc.stdout.readline().strip() == "shown"
         if shutil.which("xwininfo"):
-            tree = subprocess.run(
+            tree = children.run(
                 ["xwininfo", "-root", "-tree", "-display", x_display],
                 capture_output=True, text=True, check=True,
             ).stdout  # fmt: skip

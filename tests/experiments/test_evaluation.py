@@ -11,6 +11,7 @@ from collections.abc import Iterator
 
 import pytest
 
+from robogym_ray import children
 from robogym_ray.cli import main as cli_main
 from robogym_ray.envs.outcomes import category
 from robogym_ray.envs.registration import variant_id
@@ -64,7 +65,7 @@ def test_ids_categories_and_checks(tmp_path) -> None:
 @pytest.fixture
 def emulated_ur10() -> Iterator[str]:
     """``robogym-ray serve --real-time --emulate-hardware`` for the positioning task."""
-    proc = subprocess.Popen(
+    proc = children.popen(
         [sys.executable, "-m", "robogym_ray.cli", "serve", "--real-time", "--emulate-hardware",
          "--seed", "1", *serve_args(POSITIONING)],
         stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import pytest
 
+from robogym_ray import children
 from tests.experiments.test_scripts import script
 
 
@@ -81,7 +82,7 @@ def test_a_run_killed_after_a_snapshot_keeps_its_record_and_can_be_evaluated(
     repo = Path(__file__).resolve().parents[2]
     log = tmp_path / "train.log"  # a file, not a pipe: nothing reads it until the end
     with open(log, "wb") as sink:
-        proc = subprocess.Popen(cmd, cwd=repo, stdout=sink, stderr=subprocess.STDOUT)
+        proc = children.popen(cmd, cwd=repo, stdout=sink, stderr=subprocess.STDOUT)
     try:
         deadline = time.monotonic() + 120
         while not (out / "run.json").exists():
@@ -144,7 +145,7 @@ def test_an_rllib_peer_trains_by_wall_time_and_its_checkpoints_are_scored(
            "navigation", "--minutes", "0.1", "--save-every-min", "0.05",
            "--out", str(out)]  # fmt: skip
     repo = Path(__file__).resolve().parents[2]
-    done = subprocess.run(cmd, cwd=repo, capture_output=True, text=True, timeout=600)
+    done = children.run(cmd, cwd=repo, capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr[-2000:]
     record = json.loads((out / "run.json").read_text())
     assert record["complete"] is True and record["num_env_runners"] == (os.cpu_count() or 1)

@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-import subprocess
 import sys
 
 import numpy as np
 import pytest
 
+from robogym_ray import children
 from robogym_ray.envs import REAL_ENV_IDS
 from robogym_ray.envs.registration import env_robot
 from robogym_ray.errors import ConfigError, UnknownRobotError
@@ -25,7 +25,7 @@ def test_cards_registry_and_launch_parsing_import_no_pybullet() -> None:
         "for name in CARDS: check_options(name)\n"
         "print('pybullet' in sys.modules)\n"
     )
-    done = subprocess.run(
+    done = children.run(
         [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True
     )
     assert done.stdout.strip().splitlines()[-1] == "False"

@@ -19,6 +19,7 @@ import grpc
 import numpy as np
 import pytest
 
+from robogym_ray import children
 from robogym_ray.errors import PortInUseError
 from robogym_ray.protocol import robot_server_pb2 as pb
 from robogym_ray.protocol import robot_server_pb2_grpc as pb_grpc
@@ -107,7 +108,7 @@ def test_a_server_manager_on_a_port_a_plain_socket_holds_is_refused(plain_listen
 
 
 def run_cli(*args: str, timeout_s: float = 60.0) -> subprocess.CompletedProcess:
-    return subprocess.run(
+    return children.run(
         [sys.executable, "-m", "robogym_ray.cli", *args],
         capture_output=True,
         text=True,
@@ -198,7 +199,7 @@ def test_a_server_restarts_on_the_port_its_dead_predecessor_used(stop_signal: in
     """The supervisor's keep-port restart: once the old process is gone (stopped, or killed
     with a client still connected), a new server binds the same port."""
     cmd = [sys.executable, "-m", "robogym_ray.cli", "serve", "--robot", "mir100", "--port", "0"]
-    old = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    old = children.popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
     connected = None
     try:
         address = old.stdout.readline().strip().removeprefix("listening on ")  # type: ignore[union-attr]

@@ -13,6 +13,7 @@ import grpc
 import numpy as np
 import pytest
 
+from robogym_ray import children
 from robogym_ray.protocol import robot_server_pb2 as pb
 from robogym_ray.protocol import robot_server_pb2_grpc as pb_grpc
 from robogym_ray.robots.server import (
@@ -182,7 +183,7 @@ def test_real_time_pacing_publishes_at_the_actuation_rate() -> None:
 
 
 def test_serve_cli_prints_address_and_stops_on_sigterm() -> None:
-    proc = subprocess.Popen(
+    proc = children.popen(
         [sys.executable, "-m", "robogym_ray.cli", "serve", "--robot", "mir100", "--port", "0"],
         stdout=subprocess.PIPE,
         text=True,
@@ -201,7 +202,7 @@ def test_serve_cli_prints_address_and_stops_on_sigterm() -> None:
 
 
 def test_serve_cli_rejects_an_unknown_robot() -> None:
-    out = subprocess.run(
+    out = children.run(
         [sys.executable, "-m", "robogym_ray.cli", "serve", "--robot", "ur99"],
         capture_output=True,
         text=True,

@@ -1,0 +1,58 @@
+"""A child started through ``robogym_ray.children`` ends when its parent is stopped or killed,
+as the processes the tests start do when the test run is stopped (SIGTERM) or killed."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+pytestmark = pytest.mark.skipif(
+    not sys.platform.startswith("linux"), reason="the parent-death signal is Linux's"
+)
+
+PARENT = """
+import sys, time
+from robogym_ray import children
+child = children.popen([sys.executable, "-c", "import time; time.sleep(600)"])
+print(child.pid, flush=True)
+time.sleep(600)
+"""
+
+
+def gone(pid: int) -> bool:
+    """No such process, or a zombie waiting for whoever reaps orphans."""
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except FileNotFoundError:
+        return True
+    return state == "Z"
+
+
+@pytest.mark.parametrize("stop", [signal.SIGTERM, signal.SIGKILL], ids=["SIGTERM", "SIGKILL"])
+def test_a_child_ends_with_its_parent(stop: signal.Signals) -> None:
+    parent = subprocess.Popen([sys.executable, "-c", PARENT], stdout=subprocess.PIPE, text=True)
+    child = 0
+    try:
+        assert parent.stdout is not None
+        child = int(parent.stdout.readline())
+        assert not gone(child)
+        os.kill(parent.pid, stop)
+        assert parent.wait(timeout=60) == -stop
+        # The kernel signals the child as the parent exits; the wait only covers the scheduling
+        # of an orphan on a busy machine.
+        deadline = time.monotonic() + 60
+        while not gone(child) and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert gone(child), f"the child {child} outlived its parent"
+    finally:
+        if parent.poll() is None:
+            parent.kill()
+            parent.wait()
+        if child and not gone(child):
+            os.kill(child, signal.SIGKILL)
