@@ -132,6 +132,38 @@ def flag_name(field: str, prefix: str = "") -> str:
     return "--" + prefix + field.replace("_", "-")
 
 
+@dataclasses.dataclass(frozen=True)
+class Words:
+    """How the user gave a config's fields, so that an error names them as they were given:
+    a command line's flags (``--run-name``, ``--resume``, ``--workers (8)``) or a Python
+    call's keywords (``run_name=``, ``resume=True``, ``workers=8``)."""
+
+    flags: bool
+
+    def name(self, field: str) -> str:
+        """``--run-name`` or ``run_name=``."""
+        return flag_name(field) if self.flags else f"{field}="
+
+    def label(self, field: str) -> str:
+        """The setting before its value in a message: ``--storage /x`` or ``storage /x``."""
+        return flag_name(field) if self.flags else field
+
+    def setting(self, field: str, value: object) -> str:
+        """What to pass for ``field`` to be ``value``: ``--resume`` / ``--seed 1``, or
+        ``resume=True`` / ``seed=1``."""
+        if not self.flags:
+            return f"{field}={value!r}"
+        return flag_name(field) if value is True else f"{flag_name(field)} {value}"
+
+    def given(self, field: str, value: object) -> str:
+        """A value the user gave, to change: ``--workers (8)`` or ``workers=8``."""
+        return f"{flag_name(field)} ({value})" if self.flags else f"{field}={value!r}"
+
+
+FLAGS, KEYWORDS = Words(flags=True), Words(flags=False)
+"""The words of ``robogym-ray`` commands' errors, and of Python entries' (``robogym_ray.train``)."""
+
+
 def _add_flag(target: Any, flag: str, dest: str, tp: Any, default: Any, help_: str) -> None:
     """One option of type ``tp``: a boolean ``--x/--no-x``, a list, or one value."""
     origin = typing.get_origin(tp)

@@ -368,3 +368,34 @@ def test_a_run_refused_after_the_storage_check_leaves_no_folder(
     with pytest.raises(ConfigError, match="no networks"):
         robogym_ray.train(config, logdir=str(logdir))
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.json"]
+
+
+def test_the_python_entrys_errors_name_its_keywords(tmp_path: Path) -> None:
+    """``robogym_ray.train``'s errors name what its caller wrote (``workers=64``,
+    ``resume=True``, ``run_name=``), not the command line's flags."""
+    runs = tmp_path / "runs"
+
+    def refused(**given: object) -> str:
+        with pytest.raises(ConfigError) as info:
+            robogym_ray.train(task="pendulum", logdir=str(runs), **given)
+        assert "--" not in str(info.value), info.value
+        return str(info.value)
+
+    assert refused(workers=64, num_cpus=2).endswith(
+        "cluster has 2: lower workers=64, worker_cpus=0.25, server_cpus=0.2 or learner_cpus=0.5, "
+        "or add nodes"
+    )
+    assert refused(resume=True) == (
+        "resume=True without run_name=: expected the run_name= of the run to resume (without "
+        "one, a new, empty folder)"
+    )
+    (runs / "taken").mkdir(parents=True)
+    (runs / "taken" / "config.json").write_text("{}")
+    assert refused(run_name="taken") == (
+        f"run folder {runs / 'taken'} holds a run already: pass resume=True to continue it, or "
+        "another run_name= (leave it out for a new name each run)"
+    )
+    line = refused(run_name="none", resume=True)
+    assert line == f"resume=True: {runs / 'none'} has no checkpoint to continue from"
+    line = refused(storage="/proc/x")
+    assert line == "storage /proc/x: cannot write there (no such file or directory)"

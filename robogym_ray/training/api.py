@@ -20,6 +20,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from robogym_ray.config import KEYWORDS, Words
 from robogym_ray.errors import ConfigError
 from robogym_ray.learner.config import D4PGConfig
 from robogym_ray.robots.emulation import EmulationConfig
@@ -85,13 +86,19 @@ def train(
     ``checkpoint`` (the learner's, for ``evaluate``, ``export`` and ``init_from``), ...
 
     Raises:
-        ConfigError: bad settings, before Ray starts and before any file is written.
+        ConfigError: bad settings, before Ray starts and before any file is written; it names
+            them as keywords (``workers=8``, ``resume=True``).
         RunStoppedError: a file of the run could not be written (the summary says what was
             kept).
     """
+    return run_checked(settings(config, d4pg=d4pg, emulation=emulation, **fields), KEYWORDS)
+
+
+def run_checked(setup: TrainSetup, words: Words = KEYWORDS) -> dict[str, Any]:
+    """``setup`` checked (its errors naming the settings in ``words``: ``train``'s keywords,
+    or ``robogym-ray train``'s flags) and run: ``train``'s and the command's one way in."""
     from robogym_ray.training.run import run_training
     from robogym_ray.training.setup import check_inputs
 
-    setup = settings(config, d4pg=d4pg, emulation=emulation, **fields)
-    check_inputs(setup)  # a bad input costs no Ray start and leaves no run directory
+    check_inputs(setup, words=words)  # a bad input costs no Ray start and leaves no folder
     return run_training(setup.train, setup.d4pg, setup.emulation)

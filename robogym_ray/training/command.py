@@ -7,7 +7,7 @@ import json
 from dataclasses import fields
 from typing import Any
 
-from robogym_ray.config import add_config_args
+from robogym_ray.config import FLAGS, add_config_args
 from robogym_ray.envs.outcomes import WINDOW_KEYS
 from robogym_ray.robots.emulation import EmulationConfig
 from robogym_ray.training import ending
@@ -64,9 +64,10 @@ def build_config(args: argparse.Namespace) -> TrainSetup:
 
 
 def run(args: argparse.Namespace) -> int:
-    from robogym_ray.training.api import train
+    from robogym_ray.training.api import run_checked
 
-    summary = train(build_config(args))  # the Python entry: checked before Ray starts
+    # As the Python entry runs it, checked before Ray starts; errors name the flags.
+    summary = run_checked(build_config(args), FLAGS)
     print(json.dumps(summary) if args.json else summary_text(summary), flush=True)
     return 0
 

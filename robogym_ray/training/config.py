@@ -5,7 +5,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from robogym_ray.config import check_address, check_ranges, check_ray_address
-from robogym_ray.errors import FieldError
 
 SIM_PATHS = ("inprocess", "grpc")
 DEFAULT_TOTAL_STEPS = 3000
@@ -236,12 +235,6 @@ class TrainConfig:
         ]
         check_ranges("TrainConfig", ((ok, name, getattr(self, name), expected)
                                      for ok, name, expected in checks))  # fmt: skip
-        if self.resume and not self.run_name:  # a default name is a new, empty folder
-            expected = "the --run-name of the run to resume (without one, a new, empty folder)"
-            raise FieldError(
-                f"TrainConfig.resume=True without a run_name; expected {expected}",
-                field="resume", shown="without --run-name", expected=expected,
-            )  # fmt: skip
         for address in self.real_robot:
             check_address(address, "--real-robot")
         if self.address is not None:

@@ -14,7 +14,7 @@ from typing import Any
 
 import ray
 
-from robogym_ray.config import check_dir_path, quote
+from robogym_ray.config import FLAGS, Words, check_dir_path, quote
 from robogym_ray.distributed.local_ray import join_ray, start_local_ray
 from robogym_ray.errors import ConfigError
 from robogym_ray.experience.rollout import box_dims, make_gym_env
@@ -56,24 +56,29 @@ def noise_scale(cfg: TrainConfig, env_steps: int) -> float:
 
 
 def check_resources(
-    cfg: TrainConfig, available: float | None = None, *, own: float = 0.0, hint: str = ""
+    cfg: TrainConfig,
+    available: float | None = None,
+    *,
+    own: float = 0.0,
+    hint: str = "",
+    words: Words = FLAGS,
 ) -> None:
     """Fail fast when the actors cannot all be scheduled (they would wait forever otherwise).
 
     Args:
         available: the CPUs to fit in (default: the joined Ray cluster's).
         own: CPUs reserved beside the run's actors: a sweep trial's own actor (its driver).
-        hint: what the caller's user may lower, in the caller's words (default: train's
-            flags).
+        hint: what the caller's user may lower, in the caller's words (default: the CPU
+            settings, in ``words``: train's flags or ``robogym_ray.train``'s keywords).
     """
     if available is None:
         available = float(ray.cluster_resources().get("CPU", 0.0))
     needs = actor_needs(cfg)
     demand = total_cpus(needs) + own
     if demand > available + 1e-9:
-        hint = hint or (
-            f"lower --workers ({cfg.workers}), --worker-cpus ({cfg.worker_cpus}), --server-cpus "
-            f"({cfg.server_cpus}) or --learner-cpus ({cfg.learner_cpus})"
+        given = [words.given(f, getattr(cfg, f)) for f in ("workers", "worker_cpus", "server_cpus")]
+        hint = (
+            hint or f"lower {', '.join(given)} or {words.given('learner_cpus', cfg.learner_cpus)}"
         )
         driver = f" + its driver {own:g} CPU" if own else ""
         raise ConfigError(
@@ -82,11 +87,20 @@ def check_resources(
         )
 
 
-def check_inputs(setup: TrainSetup, *, own_cpus: float = 0.0, cpu_hint: str = "") -> None:
+def check_inputs(
+    setup: TrainSetup, *, own_cpus: float = 0.0, cpu_hint: str = "", words: Words = FLAGS
+) -> None:
     """Everything the run reads, checked before Ray starts or its run directory is made: the
     task, the D4PG settings, the log directory, the local Ray's CPUs (``check_resources``, with
-    ``own_cpus`` and ``cpu_hint``), ``--init-from`` and that the storage can be written."""
+    ``own_cpus`` and ``cpu_hint``), ``--init-from``, the run name and that the storage can be
+    written. Errors name the settings in ``words``: flags, or ``robogym_ray.train``'s keywords."""
     cfg = setup.train
+    if cfg.resume and not cfg.run_name:  # a default name is a new, empty folder
+        name = words.name("run_name")
+        raise ConfigError(
+            f"{words.setting('resume', True)} without {name}: expected the {name} of the run "
+            "to resume (without one, a new, empty folder)"
+        )
     try:
         preset = resolve_task(cfg.task)
     except ConfigError as exc:  # its message repeats the name whole: a 1 MB one too
@@ -95,23 +109,23 @@ def check_inputs(setup: TrainSetup, *, own_cpus: float = 0.0, cpu_hint: str = ""
     root = storage_root(cfg)
     if not is_uri(root):
         local = Path(root) / cfg.run_name if cfg.run_name else Path(root)
-        check_dir_path(local, "--storage/--logdir/--run-name")
+        check_dir_path(local, "/".join(map(words.label, ("storage", "logdir", "run_name"))))
     if cfg.address is None:  # the local Ray gets num_cpus, or (at most) all of this machine
         available = cfg.num_cpus or float(os.cpu_count() or 1)
-        check_resources(cfg, available, own=own_cpus, hint=cpu_hint)
-    init_from, label = cfg.init_from, "--init-from"
+        check_resources(cfg, available, own=own_cpus, hint=cpu_hint, words=words)
+    init_from, label = cfg.init_from, words.label("init_from")
     if cfg.run_name:  # a taken name without --resume, or --resume of another task: refused
-        place = run_place(cfg, preset.env_id)
+        place = run_place(cfg, preset.env_id, words)
         if cfg.resume:
             # A resumed run continues from its own checkpoint and ignores --init-from
             # (seed_checkpoint); checked the same way (other network sizes would otherwise
             # crash its learner actor after Ray started).
             own = place.storage.location(RUN_CHECKPOINT)
-            init_from, label = own, "--resume: the run's checkpoint"
+            init_from, label = own, f"{words.setting('resume', True)}: the run's checkpoint"
     # The file first: probing the env below imports pybullet, whose banner goes to stderr.
     state = read_init_from(init_from, label) if init_from else None
-    # A file written and removed at the root (made if missing, left empty by a refusal below).
-    check_writable(RunStorage(root), "--storage" if cfg.storage else "--logdir")
+    # A file written and removed at the root (the folders it needed too: nothing stays).
+    check_writable(RunStorage(root), words.label("storage" if cfg.storage else "logdir"))
     probe = make_gym_env(preset.env_id)()  # dimensions only: it never resets, so no server
     try:
         obs_dim, act_dim = box_dims(probe)
@@ -209,12 +223,12 @@ class RunPlace:
         return self.root.child(self.name)
 
 
-def run_place(cfg: TrainConfig, env_id: str) -> RunPlace:
+def run_place(cfg: TrainConfig, env_id: str, words: Words = FLAGS) -> RunPlace:
     """The run's place: ``cfg.run_name`` (or a new one, ``new_run_name``) under its storage
     root, checked as ``check_run_place`` checks it."""
     root = RunStorage(storage_root(cfg))
     place = RunPlace(cfg.run_name or new_run_name(root, env_id), root)
-    check_run_place(place, cfg.resume, env_id)
+    check_run_place(place, cfg.resume, env_id, words)
     return place
 
 
@@ -229,20 +243,22 @@ def new_run_name(root: RunStorage, env_id: str) -> str:
     return name
 
 
-def check_run_place(place: RunPlace, resume: bool, env_id: str) -> None:
+def check_run_place(place: RunPlace, resume: bool, env_id: str, words: Words = FLAGS) -> None:
     """A run folder that holds a run already is continued only when asked (``--resume``), and
-    only for the same task; ``--resume`` needs a checkpoint to continue from. One line each."""
+    only for the same task; ``--resume`` needs a checkpoint to continue from. One line each,
+    naming the settings in ``words``."""
     storage = place.storage
     held = storage.holds_run()
+    resuming, run_name = words.setting("resume", True), words.name("run_name")
     if held and not resume:
         raise ConfigError(
-            f"run folder {storage.location()} holds a run already: pass --resume to continue "
-            "it, or another --run-name (leave it out for a new name each run)"
+            f"run folder {storage.location()} holds a run already: pass {resuming} to continue "
+            f"it, or another {run_name} (leave it out for a new name each run)"
         )
     if not resume:
         return
     if not storage.exists(RUN_CHECKPOINT):
-        raise ConfigError(f"--resume: {storage.location()} has no checkpoint to continue from")
+        raise ConfigError(f"{resuming}: {storage.location()} has no checkpoint to continue from")
     if storage.exists("config.json"):
         try:
             task = json.loads(storage.read_bytes("config.json"))["train"]["task"]
@@ -251,8 +267,8 @@ def check_run_place(place: RunPlace, resume: bool, env_id: str) -> None:
             return  # an unreadable record: the checkpoint's own check (shapes) still applies
         if earlier != env_id:
             raise ConfigError(
-                f"--resume: {storage.location()} is a run of {earlier}, not {env_id}; pass "
-                "another --run-name for a new run"
+                f"{resuming}: {storage.location()} is a run of {earlier}, not {env_id}; pass "
+                f"another {run_name} for a new run"
             )
 
 
