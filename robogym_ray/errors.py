@@ -57,6 +57,11 @@ class RobotServerError(RoboGymRayError):
         self.cause = cause
 
 
+class RobotFaultError(RoboGymRayError):
+    """The robot hardware stopped on an error (a reflex, a lost connection, a refused motion):
+    the arm is stopped and refuses commands until an operator recovers it."""
+
+
 class RayNotFoundError(RoboGymRayError, ConnectionError):
     """No Ray runs at the address a command was told to join (``auto``: none on this machine);
     raised before ``ray.init``, which would print a traceback or wait for the address."""

@@ -63,7 +63,9 @@ def run(args: argparse.Namespace) -> int:
                     "--tls-key)", cfg.host)  # fmt: skip
     hardware = None
     if cfg.hardware is not None:  # checked before anything connects to the arm
-        hardware = HardwareConfig(cfg.hardware, cfg.fci_host or "", cfg.dynamics_factor)
+        hardware = HardwareConfig(
+            cfg.hardware, cfg.fci_host or "", cfg.dynamics_factor, cfg.realtime
+        )
     elif cfg.fci_host is not None:
         raise ConfigError("--fci-host is the address of a real arm: give --hardware too")
     scene, options = serve_defaults(card.serve_env, cfg.scene, parse_options(cfg.option))

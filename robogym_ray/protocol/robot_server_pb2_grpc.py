@@ -59,6 +59,11 @@ class RobotServerStub:
                 request_serializer=robot__server__pb2.Empty.SerializeToString,
                 response_deserializer=robot__server__pb2.Arguments.FromString,
                 _registered_method=True)
+        self.RecoverFromErrors = channel.unary_unary(
+                '/robot_server.RobotServer/RecoverFromErrors',
+                request_serializer=robot__server__pb2.Empty.SerializeToString,
+                response_deserializer=robot__server__pb2.Success.FromString,
+                _registered_method=True)
 
 
 class RobotServerServicer:
@@ -94,6 +99,12 @@ class RobotServerServicer:
         context.set_details('Method not implemented!')
         raise NotImplementedError('Method not implemented!')
 
+    def RecoverFromErrors(self, request, context):
+        """Missing associated documentation comment in .proto file."""
+        context.set_code(grpc.StatusCode.UNIMPLEMENTED)
+        context.set_details('Method not implemented!')
+        raise NotImplementedError('Method not implemented!')
+
 
 def add_RobotServerServicer_to_server(servicer, server):
     rpc_method_handlers = {
@@ -121,6 +132,11 @@ def add_RobotServerServicer_to_server(servicer, server):
                     servicer.GetArguments,
                     request_deserializer=robot__server__pb2.Empty.FromString,
                     response_serializer=robot__server__pb2.Arguments.SerializeToString,
+            ),
+            'RecoverFromErrors': grpc.unary_unary_rpc_method_handler(
+                    servicer.RecoverFromErrors,
+                    request_deserializer=robot__server__pb2.Empty.FromString,
+                    response_serializer=robot__server__pb2.Success.SerializeToString,
             ),
     }
     generic_handler = grpc.method_handlers_generic_handler(
@@ -258,6 +274,33 @@ class RobotServer:
             '/robot_server.RobotServer/GetArguments',
             robot__server__pb2.Empty.SerializeToString,
             robot__server__pb2.Arguments.FromString,
+            options,
+            channel_credentials,
+            insecure,
+            call_credentials,
+            compression,
+            wait_for_ready,
+            timeout,
+            metadata,
+            _registered_method=True)
+
+    @staticmethod
+    def RecoverFromErrors(request,
+            target,
+            options=(),
+            channel_credentials=None,
+            call_credentials=None,
+            insecure=False,
+            compression=None,
+            wait_for_ready=None,
+            timeout=None,
+            metadata=None):
+        return grpc.experimental.unary_unary(
+            request,
+            target,
+            '/robot_server.RobotServer/RecoverFromErrors',
+            robot__server__pb2.Empty.SerializeToString,
+            robot__server__pb2.Success.FromString,
             options,
             channel_credentials,
             insecure,

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import logging
 import math
+import os
 import threading
 import time
 from collections.abc import Mapping, Sequence
@@ -50,6 +51,8 @@ class RealRobot:
         safety: limits every action must respect.
         deadlines: per-RPC deadlines (robo-gym's by default: real robots are slow).
         token: shared token for the server, if it wants one.
+        tls_ca: PEM of the CA of its server's TLS certificate (bytes or a file's path); None =
+            a plain channel.
         check: probe the server once now (raises RobotServerError if it does not answer).
         probe_interval_s: when > 0, a background probe (GetState) runs whenever the robot has
             gone this long without a command, so a server that dies while nobody commands it
@@ -65,13 +68,14 @@ class RealRobot:
         token: str | None = None,
         check: bool = True,
         probe_interval_s: float = 0.0,
+        tls_ca: str | os.PathLike | bytes | None = None,
     ) -> None:
         if not (math.isfinite(probe_interval_s) and probe_interval_s >= 0):
             raise ValueError(f"probe_interval_s = {probe_interval_s!r}; expected >= 0")
         self.name = name
         self.address = address
         self.safety = SafetyFilter(safety)
-        self.client = RobotServerClient(address, deadlines=deadlines, token=token)
+        self.client = RobotServerClient(address, deadlines=deadlines, token=token, tls_ca=tls_ca)
         self.paused = False
         self.pause_reason = ""
         self.paused_at = 0.0
@@ -146,13 +150,16 @@ class RealRobot:
         self._pause(reason)
 
     def resume(self, wait_s: float = 10.0) -> dict[str, Any]:
-        """Operator's resume: un-pause once the server answers a health check (tried for up to
-        ``wait_s``: gRPC backs off before reconnecting to an address that failed), else stay
-        paused and raise RobotPausedError."""
+        """Operator's resume: ask the server to recover the robot from its errors, then un-pause
+        once it answers a health check (both tried for up to ``wait_s``: gRPC backs off before
+        reconnecting to an address that failed), else stay paused and raise RobotPausedError."""
         end = time.monotonic() + wait_s
         with self._lock:
             while True:
                 try:
+                    # A hardware server clears its arm's errors first (libfranka's
+                    # recover_from_errors); robo-gym's servers have nothing to call.
+                    self.client.recover_from_errors()
                     self.client.get_state()
                     break
                 except RobotServerError as exc:

@@ -32,7 +32,7 @@ and one line in ``registry.py``: ``"robogym_ray.robots.panda.card"`` in ``CARD_M
 from __future__ import annotations
 
 import importlib
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -205,6 +205,18 @@ class StateLayout:
 
 
 @dataclass(frozen=True)
+class HardwareBackends:
+    """A card's real-robot backends and the limits its resets keep to."""
+
+    factories: Mapping[str, str] = field(default_factory=dict)
+    """Backend name (``--hardware``) -> ``"module:function"``, called as
+    ``factory(model, options, hardware: HardwareConfig)``."""
+    max_dynamics_factor: float = 0.3
+    """The highest ``--dynamics-factor`` a reset may use (fraction of the arm's published
+    velocity, acceleration and jerk limits)."""
+
+
+@dataclass(frozen=True)
 class RobotCard:
     """One robot: its registry name and everything code outside its folder may know about it."""
 
@@ -231,6 +243,9 @@ class RobotCard:
     """Limits of the real robot's commands; None: no real robot known (Rob variants refuse)."""
     emulation: EmulationHooks = field(default_factory=EmulationHooks)
     """How hardware emulation scales and perturbs this robot."""
+    hardware: HardwareBackends | None = None
+    """The real robot's backends for ``serve --hardware`` (``robots/hardware.py``); None: the
+    robot is served only simulated."""
     serve_env: str | None = None
     """The env id whose server a plain ``robogym-ray serve --robot NAME`` starts: the scene and
     launch options of its ``server_spec()`` are serve's defaults (``--scene`` and each

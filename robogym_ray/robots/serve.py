@@ -43,6 +43,9 @@ class ServeConfig:
     dynamics_factor: float = 0.1
     """With --hardware: resets move the arm at this fraction of its velocity, acceleration
     and jerk limits, in (0, 1]; the robot's card caps it (fr3: 0.3)."""
+    realtime: str = "auto"
+    """With --hardware: libfranka's real-time check, enforce | ignore | auto (ignore for a
+    loopback --fci-host, i.e. a simulator such as franky-sim; enforce for a real arm)."""
     seed: int | None = None
     """Seed of the robot's own randomness (sensor noise, object trajectories)."""
     token: str | None = None
