@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 from robogym_ray.config import add_config_args, check_port, check_ray_address, config_from_args
 from robogym_ray.errors import ConfigError
+from robogym_ray.protocol.tls import server_tls
 from robogym_ray.robots.ports import check_port_free
 from robogym_ray.supervision.manager_service import ManagerLimits
 from robogym_ray.supervision.restart_policy import RestartPolicy
@@ -51,6 +52,11 @@ class ManagerConfig:
     """Robot servers started at the same time (each start loads PyBullet: CPU-bound)."""
     start_wait_s: float = ManagerLimits.start_wait_s
     """Seconds a StartNewServer waits for a start slot before it is refused as busy."""
+    tls_cert: str | None = None
+    """PEM certificate chain: serve the ServerManager service over TLS (with --tls-key);
+    robo-gym's client has no TLS, and the simulated robot servers it starts stay plain."""
+    tls_key: str | None = None
+    """PEM private key of --tls-cert (unencrypted; keep it readable by this user only)."""
 
     def __post_init__(self) -> None:
         check_port(self.port, "ManagerConfig.port (--port)")
@@ -93,6 +99,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     cfg = config_from_args(ManagerConfig, args)
+    tls = server_tls(cfg.tls_cert, cfg.tls_key)  # read and checked before anything starts
     # A held port is refused here, in one line, before Ray is imported or started (seconds, and
     # log lines on stderr); the actor's own exclusive bind still catches a port taken later.
     check_port_free(cfg.host, cfg.port, "server manager port")
@@ -101,7 +108,7 @@ def run(args: argparse.Namespace) -> int:
 
     from robogym_ray.distributed.local_ray import join_ray, start_local_ray
     from robogym_ray.distributed.names import NAMESPACE
-    from robogym_ray.distributed.remote import start_supervisor
+    from robogym_ray.distributed.remote import creation_error, start_supervisor
 
     if cfg.ray_address:
         join_ray(cfg.ray_address, namespace=NAMESPACE)
@@ -113,13 +120,12 @@ def run(args: argparse.Namespace) -> int:
             manager_host=cfg.host,
             manager_port=cfg.port,
             manager_limits=cfg.limits(),
+            manager_tls=tls,
         )
     except Exception as exc:  # noqa: BLE001 - the actor's constructor failed (port taken ...)
         ray.shutdown()
-        # Ray's error holds the actor's whole traceback; its last line is the actual error.
-        cause = (str(exc).strip().splitlines() or [type(exc).__name__])[-1]
         raise ConfigError(
-            f"could not start the server manager on {cfg.host}:{cfg.port}: {cause}"
+            f"could not start the server manager on {cfg.host}:{cfg.port}: {creation_error(exc)}"
         ) from None
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):

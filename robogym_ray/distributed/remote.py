@@ -26,6 +26,7 @@ import dataclasses
 import logging
 import math
 import os
+import re
 import socket
 import time
 from typing import Any
@@ -34,10 +35,12 @@ import ray
 from ray.exceptions import GetTimeoutError, RayActorError
 
 from robogym_ray.distributed.names import NAMESPACE, SUPERVISOR_NAME
+from robogym_ray.errors import RobotServerError
 from robogym_ray.experience.evaluator import Evaluator
 from robogym_ray.experience.rollout import RolloutResult, RolloutWorker
 from robogym_ray.learner.config import D4PGConfig
 from robogym_ray.learner.service import LearnerService
+from robogym_ray.protocol.tls import ServerTls
 from robogym_ray.realrobot.robot import RealRobot
 from robogym_ray.realrobot.safety import SafetyConfig
 from robogym_ray.supervision.manager_service import ManagerLimits, serve_manager
@@ -142,14 +145,31 @@ def start_real_robot(
     safety: SafetyConfig,
     token: str | None = None,
     probe_interval_s: float = 2.0,
+    tls_ca: bytes | None = None,
 ) -> Any:
     """Join the real robot at ``address`` as the named actor ``name`` (health-checked now,
-    then whenever it has had no command for ``probe_interval_s``)."""
+    then whenever it has had no command for ``probe_interval_s``). ``tls_ca``: the PEM (bytes,
+    read where the command runs, so no node needs the file) of its server's TLS CA."""
     actor = RealRobotActor.options(name=name, namespace=NAMESPACE).remote(
-        name, address, safety, token=token, probe_interval_s=probe_interval_s
+        name, address, safety, token=token, probe_interval_s=probe_interval_s, tls_ca=tls_ca
     )
-    ray.get(actor.status.remote())  # surfaces a failed health check here, not later
+    try:
+        ray.get(actor.status.remote())  # surfaces a failed health check here, not later
+    except RayActorError as exc:
+        if not exc.actor_init_failed:
+            raise
+        # One line (a TLS refusal, a wrong token, no server), not the constructor's traceback.
+        raise RobotServerError(
+            f"real robot {name!r} could not join: {creation_error(exc)}", cause="start"
+        ) from None
     return actor
+
+
+def creation_error(exc: BaseException) -> str:
+    """What an actor's constructor raised, in one line: Ray's error holds the whole traceback,
+    whose last line is the error itself (``TlsError: ...``, its module path dropped)."""
+    last = (str(exc).strip().splitlines() or [type(exc).__name__])[-1]
+    return re.sub(r"^(?:\w+\.)+(?=\w+: )", "", last)
 
 
 def get_real_robot(name: str) -> Any:
@@ -163,6 +183,7 @@ class _RaySupervisor(Supervisor):
         manager_host: str | None = None,
         manager_port: int = 50100,
         manager_limits: ManagerLimits | None = None,
+        manager_tls: ServerTls | None = None,
     ) -> None:
         super().__init__(config, RaySpawner(config))
         self.manager_port = 0
@@ -174,6 +195,7 @@ class _RaySupervisor(Supervisor):
                 manager_port,
                 node=ray.util.get_node_ip_address(),
                 limits=manager_limits,
+                tls=manager_tls,
             )
 
     def ping(self) -> bool:
@@ -211,13 +233,15 @@ def start_supervisor(
     manager_host: str | None = None,
     manager_port: int = 50100,
     manager_limits: ManagerLimits | None = None,
+    manager_tls: ServerTls | None = None,
 ) -> Any:
-    """Create the named supervisor actor (and its ServerManager service if ``manager_host``).
+    """Create the named supervisor actor (and its ServerManager service if ``manager_host``,
+    over TLS with ``manager_tls``).
 
     Returns once it is up; ``ray.get(handle.ping.remote())`` has succeeded.
     """
     actor = SupervisorActor.options(name=name, namespace=NAMESPACE).remote(
-        config or SupervisorConfig(), manager_host, manager_port, manager_limits
+        config or SupervisorConfig(), manager_host, manager_port, manager_limits, manager_tls
     )
     ray.get(actor.ping.remote())
     return actor
