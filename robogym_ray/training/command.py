@@ -31,7 +31,7 @@ HELP_GROUPS: dict[str, tuple[str, ...]] = {
                    "select_episodes", "policy_snapshot_every_s"),
     "faults and storage": ("storage", "init_from", "checkpoint_every", "save_replay",
                            "replay_snapshot_every_s", "worker_deadline_s"),
-    "real robots": ("real_robot", "token", "real_robot_wait_s"),
+    "real robots": ("real_robot", "token", "tls_ca", "real_robot_wait_s"),
 }  # fmt: skip
 """``train --help``'s sections: every TrainConfig field in one (a new field in none fails the
 parser's build, so every CLI test; add it here)."""

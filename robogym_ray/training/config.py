@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from robogym_ray.config import check_address, check_ranges, check_ray_address
+from robogym_ray.errors import ConfigError
 
 SIM_PATHS = ("inprocess", "grpc")
 DEFAULT_TOTAL_STEPS = 3000
@@ -42,6 +43,9 @@ class TrainConfig:
     token: str | None = None
     """Shared token of the --real-robot servers (their `serve --token`); default: the
     ROBOGYM_RAY_TOKEN environment variable. Never written to config.json."""
+    tls_ca: str | None = None
+    """PEM file of the CA that signed the --real-robot servers' TLS certificates (their serve
+    --tls-cert); read on this machine, so no other node needs it. Default: plain connections."""
     real_robot_wait_s: float = 60.0
     """Once total_steps are collected (or max_wall_s has passed), how long to wait for
     real-robot calls still running; a call that has not returned by then (a paused robot
@@ -237,5 +241,11 @@ class TrainConfig:
                                      for ok, name, expected in checks))  # fmt: skip
         for address in self.real_robot:
             check_address(address, "--real-robot")
+        if self.tls_ca is not None:
+            if not self.real_robot:
+                raise ConfigError("--tls-ca is for the servers of --real-robot: add one")
+            from robogym_ray.protocol.tls import read_ca  # grpc: only when asked for
+
+            read_ca(self.tls_ca)  # an unreadable file or no certificate: one line, before Ray
         if self.address is not None:
             check_ray_address(self.address, "--address")

@@ -44,6 +44,7 @@ from robogym_ray.experience.revisits import FailedStartRevisits
 from robogym_ray.experience.rollout import box_dims, make_gym_env
 from robogym_ray.learner.checkpoint import RUN_CHECKPOINT, replay_path
 from robogym_ray.learner.config import D4PGConfig
+from robogym_ray.protocol.tls import read_ca
 from robogym_ray.realrobot.safety import safety_for
 from robogym_ray.robots.emulation import EmulationConfig
 from robogym_ray.storage import RunStorage, local_file
@@ -308,7 +309,8 @@ def real_robot(cfg: TrainConfig, env_id: str, run_name: str, k: int) -> tuple[An
     name = f"real-{run_name}-{k}"
     rob_id = variant_id(env_id, "rob")
     token = cfg.token or os.environ.get("ROBOGYM_RAY_TOKEN") or None
-    actor = remote.start_real_robot(name, address, safety_for(rob_id), token=token)
+    tls_ca = read_ca(cfg.tls_ca)  # bytes: the actor may run on a node without the file
+    actor = remote.start_real_robot(name, address, safety_for(rob_id), token=token, tls_ca=tls_ca)
     kwargs = {"rs_address": address, "client_factory": RealRobotClientFactory(name)}
     return actor, make_gym_env(rob_id, kwargs)
 
