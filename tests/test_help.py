@@ -4,6 +4,7 @@ README's commands still parse as written."""
 from __future__ import annotations
 
 import argparse
+import ast
 import dataclasses
 import re
 import shlex
@@ -11,11 +12,14 @@ from pathlib import Path
 
 import pytest
 
+import robogym_ray
 from robogym_ray.cli import COMMANDS, build_parser, main
 from robogym_ray.config import add_config_args, help_text
+from robogym_ray.errors import ConfigError
 from robogym_ray.training.api import settings
 from robogym_ray.training.command import HELP_GROUPS, build_config
 from robogym_ray.training.config import DEFAULT_TOTAL_STEPS, TrainConfig
+from robogym_ray.training.setup import check_inputs
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -115,3 +119,30 @@ def test_a_time_given_alone_ends_the_run_not_the_default_step_total(
     # Told in --help, where the user reads the default.
     text = " ".join(help_of(["train"], capsys).split())
     assert "(default: 3000; none when --max-wall-s is given alone" in text
+
+
+def readme_train_calls() -> list[ast.expr]:
+    """The ``robogym_ray.train(...)`` calls of README.md's Python example and of the sentence
+    after it."""
+    readme = (ROOT / "README.md").read_text()
+    calls = re.findall(r"robogym_ray\.train\((?:[^()]|\([^()]*\))*\)", readme.replace("\n", " "))
+    return [ast.parse(call, mode="eval").body for call in calls]
+
+
+@pytest.mark.usefixtures("ray_must_not_start")
+def test_the_readmes_python_trainings_fit_two_cores(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Each passes every check that runs before Ray starts, on the 2 CPUs the README's machine
+    has (the navigation config alone asks for 8 workers: refused there, naming the keyword)."""
+    monkeypatch.chdir(ROOT)  # the config file's path is the clone's
+    with pytest.raises(ConfigError, match=r"cluster has 2: lower workers=8, "):
+        robogym_ray.train("experiments/configs/navigation.json", num_cpus=2, logdir=str(tmp_path))
+    calls = readme_train_calls()
+    assert len(calls) == 2
+    for call in calls:
+        assert isinstance(call, ast.Call)
+        args = [ast.literal_eval(arg) for arg in call.args]
+        kwargs = {k.arg: ast.literal_eval(k.value) for k in call.keywords if k.arg}
+        setup = settings(*args, **{**kwargs, "num_cpus": 2, "logdir": str(tmp_path)})
+        check_inputs(setup)
