@@ -32,6 +32,9 @@ def test_robot_server_schema_matches_robo_gym() -> None:
         "SendActionGetState": ("Action", "State"),
         # robo-gym-server-modules' master (after 0.3.0.1): tests/compat/test_get_arguments.py
         "GetArguments": ("Empty", "Arguments"),
+        # Ours: a hardware server's recover_from_errors (tests/distributed/test_franky_robot.py);
+        # robo-gym's servers answer it UNIMPLEMENTED (tests/compat/test_get_arguments.py).
+        "RecoverFromErrors": ("Empty", "Success"),
     }
     t = rs.Arguments.DESCRIPTOR.fields[0]
     assert fields(rs.Arguments) == {

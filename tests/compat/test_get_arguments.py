@@ -24,6 +24,8 @@ from robogym_ray import children
 from robogym_ray.errors import ConfigError
 from robogym_ray.protocol import robot_server_pb2_grpc as pb_grpc
 from robogym_ray.protocol.client import RobotServerClient
+from robogym_ray.realrobot.robot import RealRobot
+from robogym_ray.realrobot.safety import safety_for
 from robogym_ray.robots.registry import make_robot
 from robogym_ray.robots.server import RobotServerCore, RobotServerServicer, start_robot_server
 
@@ -133,10 +135,11 @@ def test_a_client_of_masters_proto_gets_our_servers_arguments(tmp_path: Path) ->
 
 
 class ServerWithoutGetArguments(RobotServerServicer):
-    """Our servicer with the generated default for GetArguments: UNIMPLEMENTED, as a robot
-    server built on robo-gym-server-modules 0.3.0.1 answers."""
+    """Our servicer with the generated defaults for GetArguments and RecoverFromErrors:
+    UNIMPLEMENTED, as a robot server built on robo-gym-server-modules 0.3.0.1 answers."""
 
     GetArguments = pb_grpc.RobotServerServicer.GetArguments
+    RecoverFromErrors = pb_grpc.RobotServerServicer.RecoverFromErrors
 
 
 def test_our_client_falls_back_and_refuses_a_server_for_another_task() -> None:
@@ -150,6 +153,12 @@ def test_our_client_falls_back_and_refuses_a_server_for_another_task() -> None:
     try:
         with RobotServerClient(address) as client:
             assert client.get_arguments() is None  # UNIMPLEMENTED: nothing to check against
+            assert client.recover_from_errors() is False  # robo-gym's: nothing to recover
+        # An operator's resume of a real robot behind such a server still un-pauses it.
+        robot = RealRobot("robo-gym-030", address, safety_for(EMPTY_ROB))
+        robot.emergency_stop()
+        assert robot.resume()["paused"] is False
+        robot.close()
         env = gym.make(EMPTY_ROB, rs_address=address)  # a robo-gym task: taken on trust
         env.reset(seed=0)
         env.step(env.action_space.sample())
