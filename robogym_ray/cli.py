@@ -30,6 +30,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "evaluate": ("robogym_ray.evaluation", "Evaluate a policy for N episodes (success rates)."),
     "export": ("robogym_ray.export", "Export a policy as TorchScript or ONNX, plus JSON."),
     "run-policy": ("robogym_ray.run_policy", "Drive a robot server with an exported policy."),
+    "isaac-lab-sample": (
+        "robogym_ray.isaac_lab_sample",
+        "Write an untrained Isaac Lab (rsl_rl) policy.pt and policy.onnx to try them with.",
+    ),
 }
 RETIRED: dict[str, str] = {
     "resume": "`robogym-ray resume` is now `resume-robot` (a paused real robot); a sweep resumes "

@@ -118,8 +118,9 @@ def env_id_of_run(checkpoint: str | Path) -> str | None:
         return None
 
 
-def action_bounds(env_id: str) -> tuple[tuple[float, ...], tuple[float, ...]]:
-    """The env's action Box (making the env starts no server: that happens on reset)."""
+def env_spaces(env_id: str) -> tuple[Any, Any]:
+    """The env's observation and action spaces (making the env starts no server: that happens
+    on reset). ConfigError for an id gymnasium does not know."""
     import gymnasium as gym
 
     import robogym_ray.envs  # noqa: F401 - registers the ids
@@ -129,10 +130,15 @@ def action_bounds(env_id: str) -> tuple[tuple[float, ...], tuple[float, ...]]:
     except gym.error.Error as exc:  # an id gymnasium does not know
         raise ConfigError(f"env id {quote(env_id)}: {clip_text(str(exc), 200)}") from None
     try:
-        space = env.action_space
-        return tuple(map(float, space.low)), tuple(map(float, space.high))  # type: ignore[attr-defined]
+        return env.observation_space, env.action_space
     finally:
         env.close()
+
+
+def action_bounds(env_id: str) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """The env's action Box."""
+    space = env_spaces(env_id)[1]
+    return tuple(map(float, space.low)), tuple(map(float, space.high))
 
 
 ONLINE_WEIGHTS_HELP = (

@@ -40,9 +40,15 @@ from robogym_ray.envs.io_descriptors import load as io_descriptors_load
 from robogym_ray.errors import ConfigError
 from robogym_ray.learner.behaviour import from_env_action
 from robogym_ray.onnx_policy import OnnxPolicy
-from robogym_ray.text import reason
+from robogym_ray.text import clip_text, reason
 
 SUFFIXES = (".pt", ".onnx")
+RSL_RL_LAYOUT = (
+    "TorchScript of a module whose forward(obs [1, N]) returns actions [1, M], with its actor's "
+    "Linear layers as parameters actor.<i>.weight in order (the first [H, N], the last [M, H]), "
+    "an observation normaliser in front optional; `robogym-ray isaac-lab-sample DIR` writes one"
+)
+"""What rsl_rl's ``policy.pt`` is, as the refusal of another TorchScript file says."""
 
 
 class IsaacLabPolicy:
@@ -149,9 +155,11 @@ def _load_torchscript(path: Path) -> tuple[Any, int, int]:
         if match is not None and value.dim() == 2:
             layers[int(match.group(1))] = value
     if not layers:
+        found = [name for name, _ in module.named_parameters()]
         raise ConfigError(
-            f"{path}: a TorchScript file without actor.<i>.weight layers - not an rsl_rl export "
-            "(Isaac Lab's play.py writes policy.pt with the actor behind its normaliser)"
+            f"{path}: a TorchScript file without actor.<i>.weight layers (its parameters: "
+            f"{clip_text(', '.join(found) or 'none', 120)}) - not an rsl_rl export (expected: "
+            f"{RSL_RL_LAYOUT})"
         )
     if any(name.startswith("rnn.") for name, _ in module.named_parameters()):
         # Its actor's input is the RNN's hidden state: the sizes below would be wrong.

@@ -65,9 +65,16 @@ def _size(shape: list[Any], path: Path) -> int:
     return int(shape[-1])
 
 
-def write_onnx(module: Any, obs_dim: int, dest: str | Path | BinaryIO) -> None:
-    """Write a torch policy (``[batch, obs_dim] -> [batch, act_dim]``) as ONNX, any batch size,
-    to a file name or a binary stream (``export`` writes it to memory first).
+def write_onnx(
+    module: Any,
+    obs_dim: int,
+    dest: str | Path | BinaryIO,
+    any_batch: bool = True,
+    opset: int = OPSET,
+) -> None:
+    """Write a torch policy (``[batch, obs_dim] -> [batch, act_dim]``) as ONNX to a file name or
+    a binary stream (``export`` writes it to memory first): any batch size, or a batch of 1 as
+    Isaac Lab's ``play.py`` writes it (``any_batch=False``; it writes ``opset`` 11).
 
     TorchScript-based export (``dynamo=False``): exact for a fixed MLP; it needs the ``onnx``
     package (the ``onnx`` extra), not ``onnxscript``.
@@ -79,11 +86,12 @@ def write_onnx(module: Any, obs_dim: int, dest: str | Path | BinaryIO) -> None:
 
     # torch < 2.5 has only the TorchScript exporter, and no ``dynamo`` argument to ask for it.
     which = {"dynamo": False} if "dynamo" in inspect.signature(torch.onnx.export).parameters else {}
+    batch_axes = {"obs": {0: "batch"}, "actions": {0: "batch"}}
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the TorchScript exporter's deprecation notice
         torch.onnx.export(
             module, (torch.zeros(1, obs_dim),), dest if hasattr(dest, "write") else str(dest),
             input_names=["obs"],
-            output_names=["actions"], dynamic_axes={"obs": {0: "batch"}, "actions": {0: "batch"}},
-            opset_version=OPSET, **which,
+            output_names=["actions"], dynamic_axes=batch_axes if any_batch else {},
+            opset_version=opset, **which,
         )  # fmt: skip

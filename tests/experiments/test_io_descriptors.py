@@ -4,7 +4,7 @@ the first action, its action term applied, a mismatch refused in one line.
 The YAML is written here as Isaac Lab's exporter writes it (``yaml.safe_dump`` of the
 descriptors of the policy group's observation terms, the action terms, the articulation and the
 scene; ``isaaclab/envs/utils/io_descriptors.py``), for a policy made here with rsl_rl's exported
-structure (``test_isaac_lab.isaac_lab_export``).
+structure (``robogym_ray.isaac_lab_sample``).
 """
 
 from __future__ import annotations
@@ -23,9 +23,10 @@ import yaml
 
 from robogym_ray.evaluation import emulated_server
 from robogym_ray.isaac_lab import IsaacLabPolicy
+from robogym_ray.isaac_lab_sample import write_sample
 from robogym_ray.learner.behaviour import to_env_action
 from robogym_ray.robots.server import start_robot_server
-from tests.experiments.test_isaac_lab import isaac_lab_export, one_error_line, run_policy
+from tests.experiments.test_isaac_lab import one_error_line, run_policy
 
 SIM = "RoboGymRay/IsaacDeployReachUR10eSim-v0"
 ROB = "RoboGymRay/IsaacDeployReachUR10eRob-v0"
@@ -105,7 +106,7 @@ def write(folder: Path, data: dict[str, Any], name: str = "IO_descriptors.yaml")
 @pytest.fixture(scope="module")
 def exported(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, Any, Path]:
     folder = tmp_path_factory.mktemp("deploy") / "exported"
-    pt, onnx, module = isaac_lab_export(folder, 19, 6)
+    pt, onnx, module = write_sample(folder, 19, 6)
     return pt, onnx, module, write(folder.parent, deploy_reach_descriptors())
 
 
@@ -273,7 +274,7 @@ def test_descriptors_of_another_task_or_without_a_policy_are_refused(
 
 def test_isaac_reach_ur10_declares_isaac_lab_2s_terms(tmp_path, capsys) -> None:
     """The UR10 reach env checks Isaac-Reach-UR10-v0's descriptors (25 obs, absolute action)."""
-    pt, _, _ = isaac_lab_export(tmp_path / "ur10", 25, 6)
+    pt, _, _ = write_sample(tmp_path / "ur10", 25, 6)
     default = [0.0, -1.712, 1.712, 0.0, 0.0, 0.0]
     rel = obs_term("joint_pos_rel", 6, "JointState", True)
     rel["joint_pos_offsets"] = default

@@ -1,16 +1,14 @@
 """Isaac Lab's exported policies on our robots, and our own policies as ONNX.
 
-The policy files are made here with the structure Isaac Lab's rsl_rl exporter gives them (an
-actor MLP behind the empirical observation normaliser, ``torch.jit.script`` for ``policy.pt``,
-``torch.onnx.export`` with input ``obs``, output ``actions``, batch 1, opset 11 for
-``policy.onnx``): no Isaac Lab needed. They run through ``run-policy --isaac-lab`` on the Sim id
+The policy files are made with the structure Isaac Lab's rsl_rl exporter gives them, by
+``robogym_ray.isaac_lab_sample`` (``robogym-ray isaac-lab-sample``, which a user without Isaac
+Lab runs too): no Isaac Lab needed. They run through ``run-policy --isaac-lab`` on the Sim id
 and on an emulated robot behind ``robogym-ray serve``.
 """
 
 from __future__ import annotations
 
 import json
-import warnings
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -22,6 +20,7 @@ from torch import nn
 from robogym_ray.cli import main as cli_main
 from robogym_ray.evaluation import emulated_server
 from robogym_ray.export import ONNX_FORMAT, export_policy, load_exported, load_policy
+from robogym_ray.isaac_lab_sample import write_sample
 from robogym_ray.robots.serve import serve_process
 from tests.experiments.conftest import POSITIONING, save_learner
 
@@ -29,42 +28,6 @@ pytest.importorskip("onnxruntime")
 
 UR10 = "RoboGymRay/IsaacReachUR10Sim-v0"
 PANDA = "RoboGymRay/IsaacReachPandaSim-v0"
-
-
-class EmpiricalNormalization(nn.Module):
-    """rsl_rl's observation normaliser as it sits in the exported module (eval mode)."""
-
-    def __init__(self, size: int, eps: float = 1e-2) -> None:
-        super().__init__()
-        self.eps = eps
-        self.register_buffer("_mean", torch.zeros(size).unsqueeze(0))
-        self.register_buffer("_var", torch.ones(size).unsqueeze(0))
-        self.register_buffer("_std", torch.ones(size).unsqueeze(0))
-        self.register_buffer("count", torch.tensor(0, dtype=torch.long))
-
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        return (x - self._mean) / (self._std + self.eps)
-
-
-class PolicyExporter(nn.Module):
-    """The shape of Isaac Lab's ``_TorchPolicyExporter``: ``actor(normalizer(obs))``."""
-
-    def __init__(self, obs_dim: int, act_dim: int) -> None:
-        super().__init__()
-        torch.manual_seed(0)
-        self.actor = nn.Sequential(
-            nn.Linear(obs_dim, 64), nn.ELU(), nn.Linear(64, 64), nn.ELU(), nn.Linear(64, act_dim)
-        )
-        self.normalizer = EmpiricalNormalization(obs_dim)
-        self.normalizer._mean.uniform_(-0.5, 0.5)
-        self.normalizer._std.uniform_(0.5, 2.0)
-
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        return self.actor(self.normalizer(x))
-
-    @torch.jit.export
-    def reset(self) -> None:
-        pass
 
 
 class RecurrentExporter(nn.Module):
@@ -80,24 +43,9 @@ class RecurrentExporter(nn.Module):
         return self.actor(out.squeeze(0))
 
 
-def isaac_lab_export(folder: Path, obs_dim: int, act_dim: int) -> tuple[Path, Path, nn.Module]:
-    """``policy.pt`` and ``policy.onnx`` as Isaac Lab's play.py writes them."""
-    folder.mkdir(parents=True, exist_ok=True)
-    module = PolicyExporter(obs_dim, act_dim).eval()
-    torch.jit.script(module).save(str(folder / "policy.pt"))
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        torch.onnx.export(
-            module, torch.zeros(1, obs_dim), str(folder / "policy.onnx"), export_params=True,
-            opset_version=11, input_names=["obs"], output_names=["actions"], dynamic_axes={},
-            dynamo=False,
-        )  # fmt: skip
-    return folder / "policy.pt", folder / "policy.onnx", module
-
-
 @pytest.fixture(scope="module")
-def ur10_files(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, nn.Module]:
-    return isaac_lab_export(tmp_path_factory.mktemp("isaac") / "exported", 25, 6)
+def ur10_files(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path | None, nn.Module]:
+    return write_sample(tmp_path_factory.mktemp("isaac") / "exported", 25, 6)
 
 
 def run_policy(capsys: pytest.CaptureFixture, *argv: str) -> dict:
@@ -187,8 +135,11 @@ def test_files_of_the_wrong_kind_or_shape_are_refused(ur10_files, tmp_path, capf
         capfd, "run-policy", "--isaac-lab", str(junk_onnx), "--env-id", UR10)  # fmt: skip
     plain = tmp_path / "plain.pt"  # TorchScript, but no actor: not an rsl_rl export
     torch.jit.script(nn.Sequential(nn.Linear(25, 6))).save(str(plain))
-    assert "not an rsl_rl export" in one_error_line(
-        capfd, "run-policy", "--isaac-lab", str(plain), "--env-id", UR10)  # fmt: skip
+    line = one_error_line(capfd, "run-policy", "--isaac-lab", str(plain), "--env-id", UR10)
+    assert "not an rsl_rl export" in line
+    # What it has, and the layout expected instead, with the command that writes one.
+    assert "(its parameters: 0.weight, 0.bias)" in line
+    assert "parameters actor.<i>.weight in order" in line and "isaac-lab-sample DIR" in line
     recurrent = tmp_path / "recurrent.pt"  # rsl_rl's recurrent export: actor after an rnn
     torch.jit.script(RecurrentExporter()).save(str(recurrent))
     assert "a recurrent rsl_rl policy" in one_error_line(
@@ -198,6 +149,28 @@ def test_files_of_the_wrong_kind_or_shape_are_refused(ur10_files, tmp_path, capf
     assert "policy.pt (TorchScript) or policy.onnx" in one_error_line(
         capfd, "evaluate", "--isaac-lab", str(other), "--env-id", UR10)  # fmt: skip
     assert "needs --env-id" in one_error_line(capfd, "evaluate", "--isaac-lab", str(pt))
+
+
+def test_the_sample_command_writes_both_files_for_an_envs_sizes(tmp_path, capfd) -> None:
+    """``robogym-ray isaac-lab-sample``: both files in rsl_rl's layout, as the loader reads
+    them, for the sizes of the env given; an export already in the folder is kept."""
+    from robogym_ray.isaac_lab import IsaacLabPolicy
+
+    capfd.readouterr()
+    assert cli_main(["isaac-lab-sample", str(tmp_path / "exported"), "--env-id", PANDA]) == 0
+    out = json.loads(capfd.readouterr().out.strip().splitlines()[-1])
+    assert (out["obs_dim"], out["act_dim"], out["trained"]) == (32, 7, False)
+    obs = np.random.default_rng(0).normal(size=32).astype(np.float32)
+    actions = []
+    for key in ("policy_pt", "policy_onnx"):
+        policy = IsaacLabPolicy(out[key])
+        assert (policy.obs_dim, policy.act_dim) == (32, 7)
+        actions.append(policy(obs))
+    np.testing.assert_allclose(actions[0], actions[1], atol=1e-5)  # one network in two files
+    before = (tmp_path / "exported" / "policy.pt").read_bytes()
+    line = one_error_line(capfd, "isaac-lab-sample", str(tmp_path / "exported"))
+    assert "policy.pt and policy.onnx already there" in line
+    assert (tmp_path / "exported" / "policy.pt").read_bytes() == before
 
 
 def test_our_onnx_export_acts_like_its_torchscript_twin(tmp_path) -> None:
