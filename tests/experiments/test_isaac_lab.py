@@ -173,6 +173,14 @@ def test_the_sample_command_writes_both_files_for_an_envs_sizes(tmp_path, capfd)
     assert (tmp_path / "exported" / "policy.pt").read_bytes() == before
 
 
+def test_the_pages_sample_command_writes_the_files_its_steps_run(tmp_path, monkeypatch) -> None:
+    (argv,) = doc_commands("isaac-lab-sample")  # docs/isaac-lab.md, as written
+    monkeypatch.chdir(tmp_path)
+    assert cli_main(["isaac-lab-sample", *argv]) == 0
+    assert (tmp_path / "exported" / "policy.pt").is_file()
+    assert (tmp_path / "exported" / "policy.onnx").is_file()
+
+
 def test_our_onnx_export_acts_like_its_torchscript_twin(tmp_path) -> None:
     save_learner(tmp_path / "learner.pt", 15, 6)
     export_policy(tmp_path / "learner.pt", tmp_path / "policy.pt", env_id=POSITIONING)
