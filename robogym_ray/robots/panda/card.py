@@ -82,6 +82,9 @@ def _card(model: str) -> RobotCard:
         # The FR3 through franky (libfranka 0.21, FR3 system 5.9+). A Panda (system 4.x) needs
         # libfranka < 0.10, which franky publishes only on its own index: untested, not offered.
         hardware=HARDWARE if model == "fr3" else None,
+        # A plain `serve --robot fr3` (with or without --hardware) serves what the FR3's
+        # positioning env expects; the Panda keeps its launch file's defaults, as before.
+        serve_env="RoboGymRay/EndEffectorPositioningFR3Rob-v0" if model == "fr3" else None,
         factory="robogym_ray.robots.panda.robot:make_panda",
         option_parser="robogym_ray.robots.panda.config:parse_options",
     )
