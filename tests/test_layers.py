@@ -5,11 +5,12 @@ pulls in neither Ray nor torch."""
 from __future__ import annotations
 
 import ast
-import subprocess
 import sys
 from collections import defaultdict
 from collections.abc import Container
 from pathlib import Path
+
+from robogym_ray import children
 
 PACKAGE = Path(__file__).resolve().parents[1] / "robogym_ray"
 RAY_ALLOWED = {"distributed", "training", "sweep"}
@@ -226,7 +227,7 @@ def test_a_sim_env_imports_neither_ray_nor_torch() -> None:
         "env.reset(seed=0); env.step(env.action_space.sample()); env.close()\n"
         "print(sorted(m for m in ('ray', 'torch') if m in sys.modules))\n"
     )
-    done = subprocess.run(
+    done = children.run(
         [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True
     )
     assert done.stdout.strip().splitlines()[-1] == "[]"
