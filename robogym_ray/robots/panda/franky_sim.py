@@ -19,6 +19,7 @@ import sys
 import threading
 import time
 
+from robogym_ray import children
 from robogym_ray.errors import ConfigError
 
 FCI_PORTS = (1337, 1338)
@@ -64,9 +65,9 @@ class FrankySim:
         cmd = [sys.executable, "-m", "franky_sim.run_server", "-s", "mujoco",
                "--hostname", self.host]  # fmt: skip
         env = {**os.environ, "PYTHONUNBUFFERED": "1"}
-        self.proc = subprocess.Popen(
+        self.proc = children.popen(
             cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env,
-            start_new_session=True, preexec_fn=_die_with_parent,
+            start_new_session=True, death_signal=signal.SIGKILL,
         )  # fmt: skip
         ready = threading.Event()
         threading.Thread(target=self._read, args=(self.proc, ready), daemon=True).start()
@@ -109,12 +110,3 @@ class FrankySim:
 
     def __exit__(self, *exc: object) -> None:
         self.stop()
-
-
-def _die_with_parent() -> None:
-    """In the child before exec: SIGKILL when the parent dies (Linux), else nothing."""
-    if sys.platform.startswith("linux"):
-        import ctypes
-
-        pr_set_pdeathsig = 1
-        ctypes.CDLL("libc.so.6", use_errno=True).prctl(pr_set_pdeathsig, signal.SIGKILL)
