@@ -25,13 +25,11 @@ from scipy.spatial.transform import Rotation
 from robogym_ray.envs.base import StepInfo
 from robogym_ray.envs.frames import frame_quat, frame_xyz
 from robogym_ray.envs.io_descriptors import ActionTermSpec, IOContract, ObsTerm
-from robogym_ray.envs.modular import PoseTask
-from robogym_ray.envs.pose_targets import sample_target_pose
+from robogym_ray.envs.pose_commands import PoseCommands, pose_error
 from robogym_ray.envs.ur_common import URTask
 from robogym_ray.envs.ur_modular import UR2Arm
 from robogym_ray.errors import ConfigError
 from robogym_ray.protocol import robot_server_pb2 as pb
-from robogym_ray.protocol.client import RobotServerClient
 from robogym_ray.robots.ur.geometry import JOINT_NAMES
 from robogym_ray.robots.ur.servo import PARAMS as SERVO_PARAMS
 
@@ -111,7 +109,7 @@ def return_range(discount: float = 0.99) -> tuple[float, float]:
     return worst * horizon, best * horizon
 
 
-class IsaacDeployReachUR(PoseTask, UR2Arm):
+class IsaacDeployReachUR(PoseCommands, UR2Arm):
     """Isaac Lab 3's ``Isaac-Deploy-Reach-UR10e-v0``: track a pose command with ``wrist_3_link``.
 
     ## Action space
@@ -209,19 +207,8 @@ class IsaacDeployReachUR(PoseTask, UR2Arm):
         self.scale = float(isaac_scale)
         if not (math.isfinite(self.scale) and self.scale > 0):
             raise ConfigError(f"isaac_scale must be a positive number, got {isaac_scale!r}")
-        self.resampling_time = float(resampling_time)
         self.randomize_actuators = bool(randomize_actuators)
-        self.prev_action = np.zeros(6)
-        self.scored_pose = np.zeros(7)
-        """The command in force during the last step (the observation may show the next)."""
-        super().__init__(ur_model=ur_model, **kwargs)
-        steps = self.resampling_time * self.action_rate
-        if not (math.isfinite(steps) and steps >= 1):
-            raise ConfigError(
-                f"resampling_time must be at least one step (1/{self.action_rate:g}"
-                f" s), got {resampling_time!r}"
-            )
-        self.window = round(steps)
+        super().__init__(ur_model=ur_model, resampling_time=resampling_time, **kwargs)
 
     # -- spaces (the action space is the arm's [-1, 1]^6) -------------------------------------
     def _obs_bounds(self) -> tuple[list[float], list[float]]:
@@ -252,21 +239,9 @@ class IsaacDeployReachUR(PoseTask, UR2Arm):
         target = measured + self.scale * np.asarray(action, dtype=np.float64)
         return np.clip(target, self.lower, self.upper)
 
-    def _send(self, client: RobotServerClient, action: np.ndarray) -> pb.State:
-        self.prev_action = self.last_action.copy()
-        msg = super()._send(client, action)
-        self.scored_pose = self.target_pose.copy()
-        step = self.elapsed_steps + 1
-        if step % self.window == 0 and step < self.max_episode_steps:
-            # Isaac Lab resamples after the step's reward, before its observation.
-            self._new_command()
-        return msg
-
     # -- episode ---------------------------------------------------------------------------
     def _prepare(self, options: Mapping[str, Any]) -> tuple[dict[str, str], dict[str, float]]:
         super()._prepare(options)  # the first command (or the ee_target_pose option)
-        self.prev_action = np.zeros(6)
-        self.scored_pose = self.target_pose.copy()
         # only_robot: no target object to place; a real arm's gains are its own
         return {}, ({} if self.real_robot or not self.randomize_actuators else self._actuator())
 
@@ -279,10 +254,6 @@ class IsaacDeployReachUR(PoseTask, UR2Arm):
             values = nominal * draw if how == "scale" else nominal + draw
             params.update({f"servo_{name}_{j}": float(v) for j, v in enumerate(values)})
         return params
-
-    def _new_command(self) -> None:
-        self.target_pose = sample_target_pose(self.np_random, self.pose_cfg, self.workspace())
-        self.target = self.target_pose[:3].copy()
 
     def _to_obs(self, msg: pb.State) -> np.ndarray:
         x, y, z, qx, qy, qz, qw = self.target_pose
@@ -299,18 +270,14 @@ class IsaacDeployReachUR(PoseTask, UR2Arm):
         a = np.asarray(action, dtype=np.float64)
         reward = TRACKING_WEIGHT * d + EXP_WEIGHT * sum(exp_kernel(d, *c) for c in EXP_COEFFS)
         reward += ACTION_WEIGHT * (np.sum((a - self.prev_action) ** 2) + np.sum(a**2))
-        position = float(np.linalg.norm(pos - goal[:3]))
-        rotation = float(
-            (Rotation.from_quat(quat) * Rotation.from_quat(goal[3:]).inv()).magnitude()
-        )
+        position, rotation = pose_error(pos, Rotation.from_quat(quat), goal)
         info: StepInfo = {
             **self._info(msg),
             "dist_coord": position,
             "dist_rot": rotation,
             "keypoint_error": d,
+            **self.window_errors(position, rotation),
         }
-        if self.elapsed_steps % self.window == 0 or self.elapsed_steps >= self.max_episode_steps:
-            info.update(window_position_error=position, window_rotation_error=rotation)
         return reward / self.action_rate, None, info
 
     def server_spec(self) -> tuple[str, str | None, dict[str, str]]:
