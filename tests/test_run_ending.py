@@ -49,6 +49,23 @@ def test_a_resumed_part_adds_to_the_earlier_parts() -> None:
     assert whole["complete"] is False
 
 
+def test_a_killed_part_is_counted_from_the_checkpoint_its_caller_recorded() -> None:
+    # A Tune trial's record (env steps, episodes, wall s, learner steps at its checkpoint);
+    # the learner restored a newer checkpoint of its own: its step, 520, is the one counted.
+    record = {"env_steps": 1528, "episodes": 7, "learner_steps": 400, "wall_s": 6.1, "parts": 1}
+    more = {"env_steps": 4472, "episodes": 22, "learner_steps": 300, "wall_s": 12.0}
+    this, whole = run_parts(more, None, resumed=True, first_learner_step=520, checkpointed=record)
+    assert this == {"part": 2, **more}
+    assert whole == {"parts": 2, "env_steps": 6000, "episodes": 29, "learner_steps": 820,
+                     "wall_s": 18.1, "complete": True}  # fmt: skip
+    _, whole = run_parts(more, None, resumed=True, first_learner_step=380, checkpointed=record)
+    assert whole["learner_steps"] == 380 + 300  # not the record's 400: taken after 380 was kept
+    # A summary the earlier part wrote is the earlier part's own word: it comes first.
+    _, first = run_parts(PART, None, resumed=False)
+    _, whole = run_parts(more, {"whole_run": first}, resumed=True, checkpointed=record)
+    assert whole["env_steps"] == 1200 + 4472
+
+
 def short(**facts: object) -> list[str]:
     summary = {"task": "Pendulum-v1", **PART, "restarts": {}, "dropped_steps": 0,
                "robot_errors": 0, "checkpoint": "/r/p/checkpoints/learner.pt",

@@ -53,6 +53,7 @@ def run_parts(
     earlier: Mapping[str, Any] | None,
     resumed: bool,
     first_learner_step: int = 0,
+    checkpointed: Mapping[str, Any] | None = None,
 ) -> tuple[dict[str, Any], dict[str, Any]]:
     """``(this_part, whole_run)`` of ``summary.json``.
 
@@ -63,12 +64,22 @@ def run_parts(
         resumed: this part continued the run from its checkpoint (``--resume``).
         first_learner_step: the learner's count at this part's start: a resumed run whose
             earlier part wrote no summary (killed) counts those steps, and not its other
-            counts (``whole_run.complete`` is false).
+            counts (``whole_run.complete`` is false), unless ``checkpointed`` has them.
+        checkpointed: the earlier parts' ``COUNTS`` (and ``parts``) as the checkpoint this
+            part started from recorded them (a Tune trial's). When the earlier part wrote no
+            summary, the whole run counts from them and is complete: its counts are the
+            trial's own, which its step budget went on from.
     """
     if earlier is not None and isinstance(earlier.get("whole_run"), Mapping):
         before = dict(earlier["whole_run"])
     elif earlier is not None:
         before = {**{k: earlier.get(k, 0) for k in COUNTS}, "parts": 1, "complete": True}
+    elif checkpointed is not None:
+        before = {k: checkpointed.get(k, 0) for k in COUNTS}
+        # The learner's own count at this part's start (the steps its checkpoint holds),
+        # not the record's, which may count steps taken after that checkpoint was written.
+        before["learner_steps"] = first_learner_step or int(before["learner_steps"])
+        before.update(parts=int(checkpointed.get("parts", 1)), complete=True)
     elif resumed:
         before = {"parts": 1, "learner_steps": first_learner_step, "complete": False}
     else:

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import json
 import logging
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import ray
@@ -46,12 +46,15 @@ def finish(
     stopped_by: str | None = None,
     learner_status: dict[str, Any] | None = None,
     out_of_time: bool = False,
+    checkpointed: Mapping[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Checkpoint (with the replay only under ``save_replay``), write the final scalars and
     the summary; returns the summary. ``failure``: what stopped the run early; it, or one met
     here, is raised after the summary is written. ``stopped_by``: the signal that ended the run
     early (SIGINT, SIGTERM). ``learner_status``: the learner's, when it is not to be asked (a
-    lost learner, killed). ``out_of_time``: collection stopped at ``max_wall_s``."""
+    lost learner, killed). ``out_of_time``: collection stopped at ``max_wall_s``.
+    ``checkpointed``: the earlier parts' counts as the caller's checkpoint recorded them
+    (``ending.run_parts``)."""
     failure = failure or logger.error
     checkpoint = None
     if failure is None:
@@ -96,7 +99,7 @@ def finish(
         # The run's folder once, as logdir: the name every summary has had (stats.run_root).
         server_nodes=p.server_nodes(), logdir=p.storage.location(),
         storage={"node": node_label() if p.storage.is_local else "(object store)"},
-        ended=ended, ended_by=ended_by, **_parts(p, run_stats, final, wall_s),
+        ended=ended, ended_by=ended_by, **_parts(p, run_stats, final, wall_s, checkpointed),
         total_steps=p.cfg.total_steps,  # null: no step cap (a run given only --max-wall-s)
         eval_interval_s=p.cfg.eval_interval_s,  # > 0: eval/* span more of the run (summary_text)
     )  # fmt: skip
@@ -117,17 +120,23 @@ def finish(
 
 
 def _parts(
-    p: Program, run_stats: RunStats, final: dict[str, float], wall_s: float
+    p: Program,
+    run_stats: RunStats,
+    final: dict[str, float],
+    wall_s: float,
+    checkpointed: Mapping[str, Any] | None,
 ) -> dict[str, Any]:
     """``resumed``, ``this_part`` and ``whole_run`` (``ending.run_parts``): this part's counts
-    added to the whole run's that the previous part's summary holds."""
+    added to the whole run's that the previous part's summary holds (else ``checkpointed``)."""
     part = {
         "env_steps": run_stats.env_steps, "episodes": run_stats.episodes,
         "learner_steps": max(0, int(final.get("learner/steps", 0)) - p.first_learner_step),
         "wall_s": round(wall_s, 2),
     }  # fmt: skip
     earlier = _earlier_summary(p) if p.cfg.resume else None
-    this_part, whole_run = ending.run_parts(part, earlier, p.cfg.resume, p.first_learner_step)
+    this_part, whole_run = ending.run_parts(
+        part, earlier, p.cfg.resume, p.first_learner_step, checkpointed
+    )
     return {"resumed": p.cfg.resume, "this_part": this_part, "whole_run": whole_run}
 
 

@@ -15,7 +15,7 @@ import logging
 import threading
 import time
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from contextlib import suppress
 from typing import Any
 
@@ -104,10 +104,15 @@ class TrainingLoop:
     """Drives a built ``Program`` to ``cfg.total_steps``; ``run()`` returns the summary.
 
     ``on_eval``: called (in the loop's thread: it must not block) with each evaluator window's
-    figures, those of ``eval_history`` and the rates so far (a Tune trial's report)."""
+    figures, those of ``eval_history``, the training episodes and the rates so far (a Tune
+    trial's report). ``checkpointed``: the earlier parts' counts as the caller's checkpoint
+    recorded them, for ``whole_run`` when the earlier part wrote no summary (``finish``)."""
 
     def __init__(
-        self, program: Program, on_eval: Callable[[dict[str, float]], None] | None = None
+        self,
+        program: Program,
+        on_eval: Callable[[dict[str, float]], None] | None = None,
+        checkpointed: Mapping[str, Any] | None = None,
     ) -> None:
         self.p, self.cfg = program, program.cfg
         self.stats = RunStats()
@@ -115,6 +120,7 @@ class TrainingLoop:
         self.learner_deaths = LearnerDeaths(program.learner)
         self.weights_stale = False
         self.on_eval = on_eval
+        self.checkpointed = checkpointed
         self.evals = EvalSchedule(program, self.stats, on_entry=self._eval_window)
         self.stop = threading.Event()
         """Set (e.g. by a SIGINT/SIGTERM handler) to end the run early, with checkpoint and
@@ -187,13 +193,15 @@ class TrainingLoop:
         self._take_replies(wait_s=30.0)
         if isinstance(self.failure, LearnerLostError):  # nothing of the run's to snapshot
             return finish(self.p, self.stats, logger, self._scalars, self._wall, self.failure,
-                          learner_status=self._lost_status)  # fmt: skip
+                          learner_status=self._lost_status,
+                          checkpointed=self.checkpointed)  # fmt: skip
         self.evals.snapshot(self._wall(), final=True)  # the mark the run ended on
         if not self._check_disk(logger):  # a full disk's run reports that, not a policy
             self.evals.final(eval_ref, logger, self._wall())  # the final policy, evaluated
             self._check_disk(logger)
         return finish(self.p, self.stats, logger, self._scalars, self._wall, self.failure,
-                      stopped_by=self.stopped_by, out_of_time=out_of_time)  # fmt: skip
+                      stopped_by=self.stopped_by, out_of_time=out_of_time,
+                      checkpointed=self.checkpointed)  # fmt: skip
 
     def request_stop(self, by: str) -> None:
         """End the run early, from any thread, the way a signal does (final checkpoint and
@@ -208,6 +216,7 @@ class TrainingLoop:
         wall = max(entry["wall_s"], 1e-9)
         learned = max(0, entry["learner_steps"] - self.p.first_learner_step)
         self.on_eval({**entry, "eval_episodes": self.stats.eval.get("eval_episodes", 0.0),
+                      "episodes": self.stats.episodes,
                       "env_steps_per_s": entry["env_steps"] / wall,
                       "learner_steps_per_s": learned / wall})  # fmt: skip
 

@@ -31,10 +31,19 @@ from robogym_ray.training.program import Program
 class RunControl:
     """A training driven from outside its loop (a Tune trial): ``on_eval`` gets each evaluator
     window's figures (``TrainingLoop``'s), and ``stop(by)``, from any thread, ends the run as
-    a signal does - also when asked before the loop exists (while the actors start)."""
+    a signal does - also when asked before the loop exists (while the actors start).
 
-    def __init__(self, on_eval: Callable[[dict[str, float]], None] | None = None) -> None:
+    ``checkpointed``: the run's counts before this part (``ending.COUNTS`` and ``parts``) as
+    the caller's own checkpoint recorded them (a Tune trial restored from one); the summary's
+    ``whole_run`` counts from them when the earlier part wrote no summary (it was killed)."""
+
+    def __init__(
+        self,
+        on_eval: Callable[[dict[str, float]], None] | None = None,
+        checkpointed: Mapping[str, Any] | None = None,
+    ) -> None:
         self.on_eval = on_eval
+        self.checkpointed = checkpointed
         self._lock = threading.Lock()
         self._loop: TrainingLoop | None = None
         self._asked: str | None = None
@@ -77,7 +86,11 @@ def run_training(
         if started_ray:
             ray.shutdown()
         raise
-    loop = TrainingLoop(program, on_eval=control.on_eval if control else None)
+    loop = TrainingLoop(
+        program,
+        on_eval=control.on_eval if control else None,
+        checkpointed=control.checkpointed if control else None,
+    )
     if control is not None:
         control.attach(loop)
     previous = _stop_on_signals(loop)
