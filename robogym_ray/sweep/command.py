@@ -40,28 +40,51 @@ HELP_GROUPS: dict[str, tuple[str, ...]] = {
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.usage = (
         "%(prog)s [--config FILE] [--set KEY=VALUE ...] [--space KEY=SPEC ...] "
-        "[options]\n       %(prog)s summary NAME [--storage STORAGE]"
+        "[options]\n       %(prog)s summary NAME [--storage STORAGE] [--metric KEY] "
+        "[--mode {max,min}]"
     )
     parser.epilog = (
         "example: robogym-ray sweep --config experiments/configs/navigation.json "
         "--space d4pg.sigma=0.2,0.4 --seeds 0 1 --scheduler asha --name nav-sigma"
     )
     add_config_args(parser, SweepConfig, groups=HELP_GROUPS)
-    actions = parser.add_subparsers(dest="sweep_action", metavar="summary")
+    # One line in --help: the group's metavar and help, and no help of the parser's own
+    # (argparse would list the action a second time under it).
+    actions = parser.add_subparsers(
+        dest="sweep_action",
+        title="a sweep's results",
+        metavar="summary NAME",
+        help="the sweep's table and figure (written into its folder)",
+    )
     summary = actions.add_parser(
         "summary",
         prog="robogym-ray sweep summary",
-        help="the sweep's table and figure (written into its folder)",
-        description="One table of the sweep's trials (settings, final and best metric, time to "
-        "90 and 95 %% success, env steps/s, how each ended) and one figure (success against "
-        "wall time) written beside it; the best trial's checkpoint.",
+        description="The sweep's summary.md (its space, metric, best trial with its checkpoint, "
+        "and one table of the trials: settings, final and best metric, time to 90 and 95 % "
+        "success, env steps/s, how each ended) and one figure (the metric against wall time) "
+        "written into its folder.",
     )
     summary.add_argument("sweep_name", metavar="NAME", help="the sweep's folder name")
     summary.add_argument(
         "--storage",
         dest="summary_storage",
+        metavar="STORAGE",
         default=None,
         help="where the sweeps are, as sweep --storage (default: runs)",
+    )
+    summary.add_argument(
+        "--metric",
+        dest="summary_metric",
+        metavar="KEY",
+        default=None,
+        help="the result key trials are ranked on (default: the sweep's --metric)",
+    )
+    summary.add_argument(
+        "--mode",
+        dest="summary_mode",
+        choices=("max", "min"),
+        default=None,
+        help="which way --metric is better (default: the sweep's --mode)",
     )
 
 
@@ -69,7 +92,10 @@ def run(args: argparse.Namespace) -> int:
     if getattr(args, "sweep_action", None) == "summary":
         from robogym_ray.sweep.report import summarize
 
-        print(summarize(args.sweep_name, args.summary_storage), flush=True)
+        text = summarize(
+            args.sweep_name, args.summary_storage, args.summary_metric, args.summary_mode
+        )
+        print(text, flush=True)
         return 0
     from robogym_ray.sweep.plan import plan_sweep
 

@@ -32,7 +32,7 @@ from robogym_ray.training.settings import TrainSetup, read_sections, setup_of
 STATE = "tuner.pkl"
 """The file Tune's experiment folder holds once a sweep has started (``Tuner.can_restore``)."""
 SWEEP_RECORD = "sweep.json"
-"""The sweep's own record beside Tune's files: its searched keys, metric and command."""
+"""The sweep's own record beside Tune's files: its space, metric and command."""
 CPU_HINT = "lower train.workers or the actors' CPUs (train.worker_cpus, ...)"
 """What a sweep's user may lower when a trial needs more CPUs than the cluster has."""
 
@@ -77,6 +77,7 @@ class SweepPlan:
             {
                 "name": self.name,
                 "searched": [a.key for a in self.axes],
+                "space": [a.spec for a in self.axes],
                 "metric": cfg.metric,
                 "mode": cfg.mode,
                 "scheduler": cfg.scheduler,
@@ -193,6 +194,11 @@ def resume_plan(cfg: SweepConfig) -> SweepPlan:
             f"(no {STATE}; --storage names where the sweeps are)"
         )
     return plan
+
+
+def read_record(folder: RunStorage) -> dict[str, Any]:
+    """The sweep's record (``SWEEP_RECORD``) in ``folder``; empty when it has none."""
+    return json.loads(folder.read_bytes(SWEEP_RECORD)) if folder.exists(SWEEP_RECORD) else {}
 
 
 def asha_grace(plan: SweepPlan) -> float:

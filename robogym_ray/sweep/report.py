@@ -1,8 +1,10 @@
-"""``robogym-ray sweep summary NAME``: one table of the sweep's trials and one figure (the
-sweep's metric against wall time, a line per trial) written beside it, read from the sweep's
-folder alone (Tune's ``result.json`` per trial, each run's ``summary.json``): no Ray, any
-machine that reaches the storage. The figure needs matplotlib (the experiments extra); without
-it the table is still written, and the line says so."""
+"""``robogym-ray sweep summary NAME``: the sweep's ``summary.md`` (its space, metric, best trial
+with its checkpoint, and one table of its trials) and one figure (the metric against wall
+time, a line per trial) written beside it, read from the sweep's folder alone (its record,
+Tune's ``result.json`` per trial, each run's ``summary.json``): no Ray, any machine that
+reaches the storage. The figure needs matplotlib (the experiments extra); without it the
+summary is still written, and the line says so. A metric that is the same in every trial
+ranks nothing: then there is no best trial, and the line says which key to rank on."""
 
 from __future__ import annotations
 
@@ -14,9 +16,10 @@ from typing import Any
 from robogym_ray.errors import ConfigError
 from robogym_ray.learner.checkpoint import RUN_CHECKPOINT
 from robogym_ray.storage import RunStorage
-from robogym_ray.sweep.plan import STATE, SWEEP_RECORD, sweeps_root
+from robogym_ray.sweep.plan import STATE, SWEEP_RECORD, read_record, sweeps_root
 
 TABLE = "summary.md"
+"""The sweep's summary: space, metric, best trial, then the table."""
 FIGURE = "curves.png"
 MARKS = (0.9, 0.95)
 
@@ -127,11 +130,38 @@ def _num(value: float | None, digits: int = 3) -> str:
 
 
 def best_trial(trials: Sequence[Trial], metric: str, mode: str) -> Trial | None:
+    """The trial with the best final ``metric``; None when no trial has it, or when it is the
+    same in every trial (``constant``): then it ranks nothing."""
     scored = [t for t in trials if t.final(metric) is not None]
-    if not scored:
+    if not scored or constant(trials, metric) is not None:
         return None
     sign = 1.0 if mode == "max" else -1.0
     return max(scored, key=lambda t: sign * (t.final(metric) or 0.0))
+
+
+def constant(trials: Sequence[Trial], metric: str) -> float | None:
+    """The final ``metric`` when two trials or more have it and it is the same in all (the
+    success rate of a task without a success condition: 0), else None."""
+    values = [v for t in trials if (v := t.final(metric)) is not None]
+    return values[0] if len(values) > 1 and len(set(values)) == 1 else None
+
+
+def best_line(trials: Sequence[Trial], metric: str, mode: str, again: str) -> str:
+    """The summary's line on the best trial and its checkpoint, or why there is none.
+    ``again``: the ``sweep summary`` command that ranks the trials on another key."""
+    best = best_trial(trials, metric, mode)
+    if best is not None:
+        return (
+            f"best trial ({metric} {mode}): {best.name}, {metric} {best.final(metric):g}, "
+            f"checkpoint {best.checkpoint()}"
+        )
+    value = constant(trials, metric)
+    if value is None:
+        return f"best trial: none yet: no trial has reported {metric}"
+    return (
+        f"best trial: none: {metric} is {value:g} in every trial, so it ranks nothing (a task "
+        f"without a success condition?); rank them on another key: {again} --metric eval/return"
+    )
 
 
 def figure(trials: Sequence[Trial], path: str, metric: str) -> bool:
@@ -161,29 +191,47 @@ def figure(trials: Sequence[Trial], path: str, metric: str) -> bool:
     return True
 
 
-def summarize(name: str, storage: str | None) -> str:
-    """Write the table and the figure into the sweep's folder; the text to print."""
+def summarize(
+    name: str, storage: str | None, metric: str | None = None, mode: str | None = None
+) -> str:
+    """Write ``summary.md`` (the space, the metric, the best trial and the table) and the figure
+    into the sweep's folder; the text to print. ``metric`` and ``mode``: rank the trials on
+    another key than the sweep's."""
     folder = RunStorage(sweeps_root(storage)).child(name)
     if not folder.exists(SWEEP_RECORD) and not folder.exists(STATE):
         raise ConfigError(
             f"sweep summary: no sweep in {folder.location()} (--storage names where the sweeps are)"
         )
-    record = json.loads(folder.read_bytes(SWEEP_RECORD)) if folder.exists(SWEEP_RECORD) else {}
-    metric, mode = record.get("metric", "eval/success_rate"), record.get("mode", "max")
+    record = read_record(folder)
+    metric = metric or record.get("metric", "eval/success_rate")
+    mode = mode or record.get("mode", "max")
     trials = read_trials(folder, record.get("searched", []))
     text = table(trials, metric, mode)
-    folder.write_bytes(TABLE, (text + "\n").encode(), "sweep table")
+    again = f"robogym-ray sweep summary {name}" + (f" --storage {storage}" if storage else "")
+    best = best_line(trials, metric, mode, again)
+    folder.write_bytes(TABLE, document(name, record, metric, mode, best, text), "sweep summary")
     staged = folder.staging("")
     drawn = figure(trials, str(staged / FIGURE), metric)
     if drawn:
         folder.publish(staged / FIGURE, FIGURE, "sweep figure")
-    lines = [text, "", f"table:  {folder.location(TABLE)}"]
+    lines = [text, "", f"summary: {folder.location(TABLE)}"]
     lines.append(
-        f"figure: {folder.location(FIGURE)}"
+        f"figure:  {folder.location(FIGURE)}"
         if drawn
-        else "figure: not drawn: matplotlib is missing (pip install -e '.[experiments]')"
+        else "figure:  not drawn: matplotlib is missing (pip install -e '.[experiments]')"
     )
-    best = best_trial(trials, metric, mode)
-    if best is not None:
-        lines.append(f"best trial ({metric} {mode}): {best.name}, checkpoint {best.checkpoint()}")
-    return "\n".join(lines)
+    return "\n".join([*lines, best])
+
+
+def document(
+    name: str, record: Mapping[str, Any], metric: str, mode: str, best: str, text: str
+) -> bytes:
+    """``summary.md``: what was searched and how, the best trial, then the table."""
+    space = record.get("space") or record.get("searched") or ["(not recorded)"]
+    how = f"{metric} ({mode})"
+    if record.get("scheduler") == "asha":
+        how += f"; ASHA stopped trials that trailed at the same {record.get('time_attr')}"
+    lines = [f"# Sweep {name}", "", f"- space: {', '.join(space)}", f"- metric: {how}", f"- {best}"]
+    if record.get("command"):
+        lines.append(f"- command: `{' '.join(record['command'])}`")
+    return "\n".join([*lines, "", text, ""]).encode()

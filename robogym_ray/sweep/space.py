@@ -44,6 +44,14 @@ class Axis:
     def key(self) -> str:
         return f"{self.section}.{self.field}"
 
+    @property
+    def spec(self) -> str:
+        """``KEY=SPEC`` as ``--space`` takes it: a grid as a JSON list, a distribution as its
+        call (a sweep's record and ``summary.md`` show the space so)."""
+        if self.kind == "grid":
+            return f"{self.key}={json.dumps(list(self.values))}"
+        return f"{self.key}={self.kind}({', '.join(json.dumps(v) for v in self.values)})"
+
     def corners(self) -> tuple[Any, ...]:
         """Values that bound what a trial can get (every grid value and choice, a range's two
         ends), so checking them checks the space."""
