@@ -101,6 +101,10 @@ def run(args: argparse.Namespace) -> int:
 
     cfg = config_from_args(SweepConfig, args)
     plan = plan_sweep(cfg)  # a bad space costs no Ray start
+    if plan.finished:
+        table = f"its table: robogym-ray sweep summary {plan.name} --storage {plan.root}"
+        print(f"sweep {plan.folder.location()} finished, nothing to resume ({table})", flush=True)
+        return 0
     from robogym_ray.sweep.report import summarize
     from robogym_ray.sweep.tuner import run_sweep
 

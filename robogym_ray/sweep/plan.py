@@ -32,7 +32,10 @@ from robogym_ray.training.settings import TrainSetup, read_sections, setup_of
 STATE = "tuner.pkl"
 """The file Tune's experiment folder holds once a sweep has started (``Tuner.can_restore``)."""
 SWEEP_RECORD = "sweep.json"
-"""The sweep's own record beside Tune's files: its space, metric and command."""
+"""The sweep's own record beside Tune's files: its space, metric and command, and whether it
+finished (``FINISHED``)."""
+FINISHED = "finished"
+"""The record's mark of a sweep whose every trial ended (completed, or stopped by ASHA)."""
 CPU_HINT = "lower train.workers or the actors' CPUs (train.worker_cpus, ...)"
 """What a sweep's user may lower when a trial needs more CPUs than the cluster has."""
 
@@ -47,6 +50,8 @@ class SweepPlan:
     axes: tuple[Axis, ...] = ()
     checked: tuple[TrainSetup, ...] = ()
     """The corner trials (``space.corner_points``), each checked."""
+    finished: bool = False
+    """A ``--resume``'d sweep whose every trial had ended (its record says so): nothing to do."""
 
     @property
     def folder(self) -> RunStorage:
@@ -71,6 +76,10 @@ class SweepPlan:
             return float(max(s.train.total_steps or 0 for s in self.checked))
         return float(max(s.train.max_wall_s or 0.0 for s in self.checked))
 
+    def trial_count(self) -> int:
+        """Trials the sweep runs: every grid combination (seeds included), ``samples`` times."""
+        return self.cfg.samples * math.prod(len(a.values) for a in self.axes if a.kind == "grid")
+
     def record(self, argv: list[str]) -> bytes:
         cfg = self.cfg
         return json.dumps(
@@ -78,6 +87,7 @@ class SweepPlan:
                 "name": self.name,
                 "searched": [a.key for a in self.axes],
                 "space": [a.spec for a in self.axes],
+                "trials": self.trial_count(),
                 "metric": cfg.metric,
                 "mode": cfg.mode,
                 "scheduler": cfg.scheduler,
@@ -193,7 +203,7 @@ def resume_plan(cfg: SweepConfig) -> SweepPlan:
             f"--resume {cfg.resume}: no sweep in {plan.folder.location()} "
             f"(no {STATE}; --storage names where the sweeps are)"
         )
-    return plan
+    return replace(plan, finished=bool(read_record(plan.folder).get(FINISHED)))
 
 
 def read_record(folder: RunStorage) -> dict[str, Any]:

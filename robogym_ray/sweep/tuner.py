@@ -4,6 +4,7 @@ sweep's folder, so ``--resume`` can continue it after its driver died."""
 
 from __future__ import annotations
 
+import json
 import logging
 import os
 from typing import Any
@@ -12,7 +13,14 @@ import ray
 from ray import tune
 
 from robogym_ray.errors import ConfigError
-from robogym_ray.sweep.plan import SWEEP_RECORD, SweepPlan, asha_grace, check_trial_cpus
+from robogym_ray.sweep.plan import (
+    FINISHED,
+    SWEEP_RECORD,
+    SweepPlan,
+    asha_grace,
+    check_trial_cpus,
+    read_record,
+)
 from robogym_ray.sweep.trial import TrainingTrial, trial_needs, trial_resources
 from robogym_ray.training.resources import describe
 from robogym_ray.training.setup import ensure_ray
@@ -46,10 +54,22 @@ def run_sweep(plan: SweepPlan, argv: list[str]) -> Any:
                 tune_config=tune_config(plan),
                 run_config=run_config(plan),
             )
-        return tuner.fit()
+        grid = tuner.fit()
+        note_finished(plan, grid)
+        return grid
     finally:
         if started:
             ray.shutdown()
+
+
+def note_finished(plan: SweepPlan, grid: Any) -> None:
+    """Mark the sweep's record finished when every trial it plans has ended without an error
+    (completed, or stopped by ASHA): ``--resume`` then has nothing to do and says so. An
+    interrupted sweep (Ctrl-C) has trials that are not terminated, or not yet made."""
+    record = read_record(plan.folder)
+    if grid.num_terminated == len(grid) == record.get("trials"):
+        marked = json.dumps({**record, FINISHED: True}, indent=2).encode()
+        plan.folder.write_bytes(SWEEP_RECORD, marked, "sweep record")
 
 
 def check_cluster(plan: SweepPlan) -> None:
