@@ -43,15 +43,37 @@ def run_summaries(sweep: Path) -> dict[str, dict[str, Any]]:
             for d in sorted((sweep / "runs").iterdir())}  # fmt: skip
 
 
-def test_four_trials_two_at_a_time_and_asha_stops_the_worse(tmp_path: Path) -> None:
-    # min_replay_size=100000: that trial's learner never steps. ASHA compares learner_steps
-    # after 4 s of a trial's wall time (each ends at 8 s; a learner's first steps can take
-    # seconds): a later such trial trails a recorded good one and is stopped. ASHA may stop a
-    # good one too (it stops whatever trails the rung's median).
-    argv = [*BASE, "max_wall_s=8", "total_steps=1000000", "--space",
-            "d4pg.min_replay_size=100,100000", "--seeds", "0", "1", "--max-concurrent", "2",
-            "--scheduler", "asha", "--metric", "learner_steps", "--time-attr", "wall_s",
-            "--grace-period", "4", "--storage", str(tmp_path), "--name", "four"]  # fmt: skip
+def restorable(sweep: Path) -> int:
+    """Trials of the sweep in ``sweep`` whose checkpoint the experiment state Tune last saved
+    holds, its folder on disk: those ``--resume`` goes on from."""
+    from ray.tune import ExperimentAnalysis
+
+    try:
+        trials = ExperimentAnalysis(str(sweep)).trials
+    except (ValueError, OSError):  # no state saved yet, or caught while it is written
+        return 0
+    return sum(t.checkpoint is not None and Path(t.checkpoint.path).is_dir() for t in trials)
+
+
+def test_four_trials_two_at_a_time_and_asha_stops_the_worse(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    # ASHA counts work, not seconds: --time-attr env_steps, its one rung at 1,550 (the next,
+    # 3,100, is past every result of a 3,000-step trial), comparing learner steps. A trial
+    # with min_replay_size=100000 never takes a learner step; one with 100 has taken some
+    # by 1,550 env steps on any machine (its learner steps as it inserts, one per eight
+    # transitions, and the driver's count of them is at most two calls behind). Grid order:
+    # good s0, worse s0, good s1, worse s1; the last starts after two have ended, one of them
+    # at least a good one, recorded at the rung, so the rung's median is above 0 when the last
+    # gets there: stopped. One env per worker: the evaluator, stepping one env as the worker
+    # does, ends episodes (results) between the rung and the trial's end, with room for an
+    # evaluator that starts late (2,200 env steps after its worker on 2 cores, 2026-11-28).
+    # ASHA may stop a good one too (one that trails the median).
+    argv = [*BASE, "envs_per_worker=1", "d4pg.samples_per_insert=4", "total_steps=3000",
+            "--space", "d4pg.min_replay_size=100,100000", "--seeds", "0", "1",
+            "--max-concurrent", "2", "--scheduler", "asha", "--metric", "learner_steps",
+            "--time-attr", "env_steps", "--grace-period", "1550", "--storage", str(tmp_path),
+            "--name", "four"]  # fmt: skip
     assert main(["sweep", *argv]) == 0
     sweep = tmp_path / "four"
     # The command main() was given, not this process's sys.argv (pytest's).
@@ -70,13 +92,19 @@ def test_four_trials_two_at_a_time_and_asha_stops_the_worse(tmp_path: Path) -> N
     config = {n: json.loads((sweep / "runs" / n / "config.json").read_text()) for n in runs}
     worse = [r for n, r in runs.items() if config[n]["d4pg"]["min_replay_size"] == 100000]
     assert len(worse) == 2 and all(r["learner_steps"] == 0 for r in worse)
-    assert any(r["ended"] == "stopped" for r in worse), [(r["ended"], r["wall_s"]) for r in worse]
+    ends = [(r["ended"], r["env_steps"]) for r in worse]
+    assert any(ended == "stopped" for ended, _ in ends), ends
     for run in (r for r in runs.values() if r["ended"] == "stopped"):
         # ended as a stopped run ends: final checkpoint and summary
         assert run["stopped_by"] == "scheduler" and Path(run["checkpoint"]).is_file()
-    table = (sweep / "summary.md").read_text()
-    assert len(table.splitlines()) == 2 + 4 and "stopped (scheduler)" in table
+    table = [line for line in (sweep / "summary.md").read_text().splitlines() if line[:1] == "|"]
+    assert len(table) == 2 + 4 and any("stopped (scheduler)" in line for line in table)
     assert (sweep / "curves.png").stat().st_size > 0
+    # Every trial ended: the record says so, and --resume has nothing to do (no Ray start).
+    assert json.loads((sweep / "sweep.json").read_text())["finished"]
+    capsys.readouterr()
+    assert main(["sweep", "--resume", "four", "--storage", str(tmp_path)]) == 0
+    assert "finished, nothing to resume" in capsys.readouterr().out
 
 
 def test_a_sweep_goes_on_from_its_checkpoints_after_its_driver_is_killed(
@@ -89,23 +117,31 @@ def test_a_sweep_goes_on_from_its_checkpoints_after_its_driver_is_killed(
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
     sweep = tmp_path / "killed"
     try:
-        deadline = time.monotonic() + 120
-        # Two Tune checkpoints a trial: Tune has saved the experiment's state since the first.
-        while sum(len(list(d.glob("checkpoint_*"))) >= 2 for d in sweep.glob("Training*")) < 2:
+        hung = time.monotonic() + 600  # a guard against a hang, not a measure of speed
+        # Killed once the experiment state Tune saved (what --resume restores) holds a
+        # checkpoint of each trial: a checkpoint folder on disk alone may not be in it yet.
+        while restorable(sweep) < 2:
             assert driver.poll() is None, "the sweep ended before it was killed"
-            assert time.monotonic() < deadline, "no checkpoints in 120 s"
-            time.sleep(0.2)
+            assert time.monotonic() < hung, "no restorable checkpoints in 600 s"
+            time.sleep(0.5)
     finally:
         driver.kill()  # SIGKILL: no Tune shutdown, no summary; its trials die with it
         driver.wait()
     assert not list((sweep / "runs").glob("*/summary.json"))
+    assert "finished" not in json.loads((sweep / "sweep.json").read_text())
     assert main(["sweep", "--resume", "killed", "--storage", str(tmp_path)]) == 0
+    assert json.loads((sweep / "sweep.json").read_text())["finished"]
     runs = run_summaries(sweep)
     assert len(runs) == 2
     for run in runs.values():
         assert run["ended"] == "completed" and run["resumed"]
         assert run["learner_restored_from_step"] >= 100  # from its checkpoint, not from 0
         assert 0 < run["this_part"]["env_steps"] < 1000
+        # The killed part wrote no summary: the whole run counts from the trial's checkpoint.
+        whole = run["whole_run"]
+        assert whole["complete"] and whole["parts"] == 2, whole
+        assert whole["env_steps"] >= 1000 and whole["learner_steps"] == run["learner_steps"]
+        assert whole["env_steps"] > run["this_part"]["env_steps"]
     for results in trial_results(sweep).values():
         steps = [r["env_steps"] for r in results]
         assert steps[-1] >= 1000 and results[-1]["done"]
