@@ -29,6 +29,7 @@ _PANDA = "robogym_ray.envs.panda_tasks:"
 _URM = "robogym_ray.envs.ur_modular:"
 _PANDAM = "robogym_ray.envs.panda_modular:"
 _DEPLOY = "robogym_ray.envs.ur_deploy_reach:"
+_ISAAC_REWARD = "robogym_ray.envs.ur_isaac_reach_reward:"
 
 RobotVariant = tuple[str, dict[str, Any]]
 """(robot as spelled in the id, env kwargs that pick it)."""
@@ -69,6 +70,8 @@ TASKS: tuple[tuple[str, str, tuple[RobotVariant, ...]], ...] = (
     # robo-gym 2.1.0's Isaac Lab reach envs (25 obs / 6 actions and 32 / 7).
     ("IsaacReach", _URM + "IsaacReachUR", _ur("UR10")),
     ("IsaacReach", _PANDAM + "IsaacReachPanda", _FRANKA),
+    # The UR10's on Isaac Lab's own reward, commands and ends (25 obs / 6 actions, as above).
+    ("IsaacReachIsaacReward", _ISAAC_REWARD + "IsaacReachIsaacRewardUR", _ur("UR10")),
     # Isaac Lab 3's Isaac-Deploy-Reach-UR10e-v0 (19 obs / 6 actions, 60 Hz).
     ("IsaacDeployReach", _DEPLOY + "IsaacDeployReachUR", _ur("UR10e")),
 )

@@ -8,14 +8,14 @@ hyperparameters known to suit the task.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import gymnasium as gym
 
 from robogym_ray.config import merge_config
-from robogym_ray.envs.ur_deploy_reach import return_range
+from robogym_ray.envs import ur_deploy_reach, ur_isaac_reach_reward
 from robogym_ray.errors import ConfigError
 from robogym_ray.learner.config import D4PGConfig
 from robogym_ray.text import did_you_mean
@@ -55,15 +55,20 @@ _PANDA_POSITIONING = {**_POSITIONING, "v_min": -5.0, "v_max": 5.0}
 _ISAAC_REACH = {**_POSITIONING, "v_min": -20.0, "v_max": 5.0}
 
 
-def _deploy_reach_support(discount: float = 0.99) -> dict[str, float]:
-    """``[v_min, v_max]``: the discounted return's bounds over the env's action bounds (the rule
-    of ``learner.config``), rounded outwards to whole units: [-9, 4] for the UR10e at its
-    streamed actions' bounds of [-1, 1] (it was [-138, 4] at the trajectory bounds of before)."""
-    worst, best = return_range(discount)
+def _support(return_range: Callable[[float], tuple[float, float]]) -> dict[str, float]:
+    """``[v_min, v_max]``: the bounds of a task's discounted return (discount 0.99) over the
+    env's action bounds (the rule of ``learner.config``), rounded outwards to whole units."""
+    worst, best = return_range(0.99)
     return {"v_min": float(math.floor(worst)), "v_max": float(math.ceil(best))}
 
 
-_DEPLOY_REACH = {**_POSITIONING, **_deploy_reach_support()}
+# [-9, 4] for the UR10e at its streamed actions' bounds of [-1, 1] (it was [-138, 4] at the
+# trajectory bounds of before).
+_DEPLOY_REACH = {**_POSITIONING, **_support(ur_deploy_reach.return_range)}
+# [-4, 1]: per step (-0.2 x 2.6 m - 0.1 x pi rad - 1e-4 x 3316 (every action jumping across its
+# +-25 bounds) - 1e-4 x 1.93 (every joint at 0.2 of its speed limit)) / 30 = -0.0389 at worst,
+# 0.1 / 30 = 0.0033 at best (on the command, still), times the horizon of 100 steps.
+_ISAAC_REACH_ISAAC_REWARD = {**_POSITIONING, **_support(ur_isaac_reach_reward.return_range)}
 _NAVIGATION = {"v_min": -300.0, "v_max": 450.0, "layer_norm": True, "min_replay_size": 500}
 
 TASKS: dict[str, TaskPreset] = {
@@ -109,6 +114,16 @@ TASKS: dict[str, TaskPreset] = {
         "RoboGymRay/IsaacReachUR10Sim-v0",
         _ISAAC_REACH,
         "UR10 reaches a pose: robo-gym 2.1.0's port of Isaac Lab's Isaac-Reach-UR10-v0",
+    ),
+    # The same UR10 reach on Isaac Lab's own reward and ends (envs/ur_isaac_reach_reward.py): a
+    # tracking reward times dt = 1/30 s, a new pose every 4 s, 12-s episodes that end only by
+    # time, so no crash ends a costly search; the same spaces, so its policies are scored on
+    # IsaacReachUR10Sim-v0 (`evaluate --env-id`). The positioning recipe with the support of
+    # _ISAAC_REACH_ISAAC_REWARD.
+    "isaac-reach-ur10-isaac-reward": TaskPreset(
+        "RoboGymRay/IsaacReachIsaacRewardUR10Sim-v0",
+        _ISAAC_REACH_ISAAC_REWARD,
+        "isaac-reach-ur10 on Isaac Lab's own reward and 4-s commands, to train policies for it",
     ),
     # Isaac Lab 3's deploy reach (UR10e): its keypoint reward times 1/60 s per step, plus the
     # action and action-rate L2 terms; episodes end only by the time limit, so the support is the

@@ -48,6 +48,7 @@ def load_config(name: str):
         "panda-positioning",
         "fr3-positioning",
         "isaac-reach-ur10",
+        "isaac-reach-ur10-isaac-reward",
         "isaac-deploy-reach-ur10e-fine",
     ],
 )
@@ -102,6 +103,17 @@ def test_isaac_reach_ur10_is_the_positioning_recipe_with_its_reward_scale() -> N
     assert (reach[1]["v_min"], reach[1]["v_max"]) == (-20.0, 5.0)
     assert (preset.d4pg["v_min"], preset.d4pg["v_max"]) == (-20.0, 5.0)
     assert TASKS["isaac-reach-ur10"] is preset
+
+
+def test_isaac_reach_ur10_on_isaac_labs_reward_is_the_positioning_recipe_with_its_support() -> None:
+    from robogym_ray.training.presets import TASKS, resolve_task
+
+    reach, ur = load_config("isaac-reach-ur10-isaac-reward"), load_config("positioning")
+    assert reach[1] | {"v_min": ur[1]["v_min"], "v_max": ur[1]["v_max"]} == ur[1]
+    preset = resolve_task(reach[0].task)
+    assert preset.env_id == "RoboGymRay/IsaacReachIsaacRewardUR10Sim-v0"
+    assert (reach[1]["v_min"], reach[1]["v_max"]) == (preset.d4pg["v_min"], preset.d4pg["v_max"])
+    assert TASKS["isaac-reach-ur10-isaac-reward"] is preset
 
 
 @pytest.mark.ray
