@@ -16,7 +16,7 @@ import logging
 import threading
 import time
 import traceback
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -283,18 +283,21 @@ class LogLimit:
     """At most ``burst`` log lines per kind of failure per ``window_s``; counts the rest.
 
     A client that repeats one bad call in a loop would otherwise fill the log with one line
-    per call; the first line after a quiet window says how many were left out.
+    per call; the first line after a quiet window says how many were left out. ``clock``:
+    monotonic seconds (a test moves its own).
     """
 
-    def __init__(self, burst: int = 10, window_s: float = 60.0) -> None:
-        self.burst, self.window_s = burst, window_s
+    def __init__(
+        self, burst: int = 10, window_s: float = 60.0, clock: Callable[[], float] = time.monotonic
+    ) -> None:
+        self.burst, self.window_s, self.clock = burst, window_s, clock
         self._lock = threading.Lock()
         self._windows: dict[tuple[str, str], tuple[float, int, int]] = {}
         """kind -> (window start, lines logged in it, lines suppressed since the last one)"""
 
     def allow(self, kind: tuple[str, str]) -> int | None:
         """None: do not log; else log, noting this many suppressed lines since the last one."""
-        now = time.monotonic()
+        now = self.clock()
         with self._lock:
             start, logged, suppressed = self._windows.get(kind, (now, 0, 0))
             if now - start >= self.window_s:
