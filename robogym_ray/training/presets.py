@@ -127,7 +127,7 @@ TASKS: dict[str, TaskPreset] = {
     ),
     # Isaac Lab 3's deploy reach (UR10e): its keypoint reward times 1/60 s per step, plus the
     # action and action-rate L2 terms; episodes end only by the time limit, so the support is the
-    # per-step range times the horizon, at the action bounds of [-1, 1] (_deploy_reach_support).
+    # per-step range times the horizon, at the action bounds of [-1, 1] (_DEPLOY_REACH).
     # A first preset, [-6, 4], left out the action terms, which dominated at the wide trajectory
     # bounds of before: that run's returns (~-26 discounted) lay below it (results-log.md,
     # 2026-11-26).

@@ -1,0 +1,45 @@
+"""The isaac-reach-ur10-isaac-reward experiment end to end, CI-sized: a training from its config
+file (preset, support and recipe; small networks, a short replay warm-up), then ``evaluate`` on
+robo-gym 2.1.0's IsaacReachUR10Sim-v0, the env its policies are scored on."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+import robogym_ray
+from robogym_ray.cli import main as cli_main
+
+pytestmark = [pytest.mark.ray, pytest.mark.slow, pytest.mark.usefixtures("ray_cluster")]
+
+CONFIG = (
+    Path(__file__).resolve().parents[2] / "experiments/configs/isaac-reach-ur10-isaac-reward.json"
+)
+ORIGINAL = "RoboGymRay/IsaacReachUR10Sim-v0"
+
+
+def test_a_short_training_runs_and_evaluate_scores_it_on_isaac_reach_ur10(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    # Small networks, few learner steps: the path is under test, not the learning.
+    small = {"policy_hidden": [32, 32], "critic_hidden": [32, 32], "min_replay_size": 100,
+             "batch_size": 16, "samples_per_insert": 2.0}  # fmt: skip
+    summary = robogym_ray.train(
+        str(CONFIG), d4pg=small, workers=1, envs_per_worker=2,
+        total_steps=400, random_steps=100, logdir=str(tmp_path), run_name="smoke",
+        progress=False, video_interval_s=0.0, final_eval_episodes=1,
+    )  # fmt: skip
+    assert summary["task"] == "RoboGymRay/IsaacReachIsaacRewardUR10Sim-v0"
+    assert summary["env_steps"] >= 400 and summary["learner_steps"] > 0
+    # The variant ends only by time: its evaluator scores the window-end errors.
+    assert summary["eval/timeout_rate"] == 1.0 and 0 < summary["eval/window_position_error"] < 3
+    config = json.loads((tmp_path / "smoke" / "config.json").read_text())
+    assert (config["d4pg"]["v_min"], config["d4pg"]["v_max"]) == (-4.0, 1.0)
+    # Its policy runs unchanged on robo-gym 2.1.0's env and is scored by that env's success.
+    argv = [str(tmp_path / "smoke"), "--env-id", ORIGINAL, "--episodes", "2", "--max-steps", "30"]
+    assert cli_main(["evaluate", *argv]) == 0
+    scored = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert scored["env_id"] == ORIGINAL and scored["n_episodes"] == 2
+    assert "success_rate" in scored["rates"] and scored["median_position_error"] > 0
