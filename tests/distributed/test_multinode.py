@@ -177,9 +177,11 @@ def test_node_losses_on_a_cluster_of_separate_disks(temp_dir: str, tmp_path: Pat
                 assert list(private.iterdir()) == []  # no run folder, no marker left
 
                 # 2. A training on shared storage; the learner only where learner_node is.
+                # --max-wall-s guards against a hang only: the run ends by SIGTERM below, and
+                # the cap is past the waits' own guards put together (900 s).
                 driver = children.popen(
                     train(port, shared, "--workers", "2", "--envs-per-worker", "2",
-                          "--total-steps", "10000000", "--max-wall-s", "360",
+                          "--total-steps", "10000000", "--max-wall-s", "1200",
                           "--learner-resource", "learner_node", "--checkpoint-every", "100",
                           "--replay-snapshot-every-s", "10", "--policy-snapshot-every-s", "0"),
                     env=env, stdout=subprocess.PIPE, stderr=log, text=True,
