@@ -116,7 +116,8 @@ def test_a_replacement_evaluator_no_node_can_place_does_not_hold_up_the_end(
         assert run_stats.evaluator_failures == 1 and program.evaluator is not None
         started = time.monotonic()
         schedule.final(schedule.start(), logger, wall_s=3.0)
-        # Given up after worker_deadline_s; the run's rates are the lost evaluator's.
-        assert time.monotonic() - started < cfg.worker_deadline_s + 10
+        # Given up after worker_deadline_s, not waited on for ever (the margin is for a slow
+        # machine's calls around it); the run's rates are the lost evaluator's.
+        assert cfg.worker_deadline_s <= time.monotonic() - started < cfg.worker_deadline_s + 60
         assert program.evaluator is None
         assert run_stats.eval["eval_episodes"] == cfg.final_eval_episodes
