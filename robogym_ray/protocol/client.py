@@ -127,29 +127,26 @@ class RobotServerClient:
         """GetArguments (robo-gym-server-modules' master, after 0.3.0.1): the server's action
         rate and modes, or None from a server without it (it answers ``UNIMPLEMENTED``, as
         robo-gym 2.0.x's servers and all of 2.1.2's but the Panda's do)."""
-        try:
-            reply, call = self._call("GetArguments", pb.Empty(), self.deadlines.get_state)
-        except RobotServerError as exc:
-            if exc.cause == "rpc" and "UNIMPLEMENTED" in str(exc):
-                return None
-            raise
-        if not reply.success:
-            raise self._rejected("GetArguments", call)
-        return reply
+        return self._optional_call("GetArguments", self.deadlines.get_state)
 
     def recover_from_errors(self) -> bool:
         """RecoverFromErrors (ours): a hardware server clears its arm's errors. False from a
         server without it (robo-gym's, which answer ``UNIMPLEMENTED``); a refusal (the arm
         still faulted, its controller unreachable) raises RobotServerError."""
+        return self._optional_call("RecoverFromErrors", self.deadlines.set_state) is not None
+
+    def _optional_call(self, rpc: str, deadline: float) -> Any:
+        """An RPC that not every robot server has (``Empty`` in): its reply, or None where the
+        server answers ``UNIMPLEMENTED``; ``success=false`` raises as any refusal does."""
         try:
-            reply, call = self._call("RecoverFromErrors", pb.Empty(), self.deadlines.set_state)
+            reply, call = self._call(rpc, pb.Empty(), deadline)
         except RobotServerError as exc:
             if exc.cause == "rpc" and "UNIMPLEMENTED" in str(exc):
-                return False
+                return None
             raise
         if not reply.success:
-            raise self._rejected("RecoverFromErrors", call)
-        return True
+            raise self._rejected(rpc, call)
+        return reply
 
     def close(self) -> None:
         self._channel.close()
