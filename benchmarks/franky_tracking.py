@@ -5,7 +5,9 @@ The Franka backend (``robots/panda/franky_arm.py``) hands the arm one joint targ
 
 * ``motion``: an asynchronous ``JointMotion`` per target; each new one preempts the last and
   Ruckig plans from the current state to a stop at the new target;
-* ``impedance``: one ``JointImpedanceTracker`` whose reference is replaced per target.
+* ``impedance``: one ``JointImpedanceTracker`` whose reference is replaced per target, at
+  franky's default stiffness (50 N m/rad on every joint);
+* ``impedance-stiff``: the same at the backend's stiffness (``franky_arm.JOINT_STIFFNESS``).
 
 Both follow the same target sequence: a random walk of the kind a trained positioning policy
 sends, steps of up to ``--step`` rad per joint, inside the FR3's limits. Measured per action,
@@ -27,6 +29,7 @@ import time
 
 import numpy as np
 
+from robogym_ray.robots.panda.franky_arm import JOINT_STIFFNESS
 from robogym_ray.robots.panda.franky_sim import FrankySim
 from robogym_ray.robots.panda.model import READY
 
@@ -47,7 +50,11 @@ def follow(host: str, mode: str, plan: np.ndarray, rate: float) -> dict[str, flo
     robot = franky.Robot(host, realtime_config=franky.RealtimeConfig.Ignore)
     robot.relative_dynamics_factor = 0.2
     robot.move(franky.JointMotion(plan[0].tolist()))
-    tracker = franky.JointImpedanceTracker(robot) if mode == "impedance" else None
+    tracker = None
+    if mode == "impedance":  # franky's default stiffness, 50 N m/rad on every joint
+        tracker = franky.JointImpedanceTracker(robot)
+    elif mode == "impedance-stiff":  # the backend's: Franka's joint impedance example gains
+        tracker = franky.JointImpedanceTracker(robot, stiffness=np.array(JOINT_STIFFNESS))
     period, sample = 1.0 / rate, 0.01
     q_log, dq_log, errors = [], [], []
     start = time.perf_counter()
@@ -88,7 +95,7 @@ def main() -> None:
     args = parser.parse_args()
     plan = targets(args.seconds, args.rate, args.step, args.seed)
     results = {}
-    for mode in ("motion", "impedance"):
+    for mode in ("motion", "impedance", "impedance-stiff"):
         with FrankySim() as sim:  # a fresh arm for each, from the same pose
             results[mode] = follow(sim.host, mode, plan, args.rate)
     print(json.dumps({"args": vars(args), "results": results}, indent=2))

@@ -56,6 +56,10 @@ from robogym_ray.robots.panda.state import N_OBJECTS, compose_state, sensor_grou
 log = logging.getLogger(__name__)
 
 _IDENTITY = (0.0, 0.0, 0.0, 1.0)
+JOINT_STIFFNESS = (600.0, 600.0, 600.0, 600.0, 250.0, 150.0, 50.0)
+"""The tracker's joint stiffness (N m/rad): the gains of libfranka's joint impedance example
+(``examples/joint_impedance_control.cpp``). franky's default, 50 on every joint, lets gravity pull
+the shoulder several centimetres off its target (``benchmarks/franky_tracking.py``)."""
 
 
 class FrankyArm(SimRobot):
@@ -152,7 +156,10 @@ class FrankyArm(SimRobot):
         try:
             if self._tracker is None:
                 self._tracker = self._franky.JointImpedanceTracker(
-                    self._robot, lower_joint_limits=self.lower, upper_joint_limits=self.upper
+                    self._robot,
+                    stiffness=np.array(JOINT_STIFFNESS),
+                    lower_joint_limits=self.lower,
+                    upper_joint_limits=self.upper,
                 )
             self._tracker.set_target(target)
         except Exception as exc:  # noqa: BLE001
