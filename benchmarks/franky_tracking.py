@@ -7,7 +7,9 @@ The Franka backend (``robots/panda/franky_arm.py``) hands the arm one joint targ
   Ruckig plans from the current state to a stop at the new target;
 * ``impedance``: one ``JointImpedanceTracker`` whose reference is replaced per target, at
   franky's default stiffness (50 N m/rad on every joint);
-* ``impedance-stiff``: the same at the backend's stiffness (``franky_arm.JOINT_STIFFNESS``).
+* ``backend``: what the backend does: the targets go to the simulated arm's reference
+  (``controller.JointPositionController``, straight segments at the speed limits), stepped at
+  100 Hz, which a tracker at the backend's stiffness (``franky_arm.JOINT_STIFFNESS``) follows.
 
 Both follow the same target sequence: a random walk of the kind a trained positioning policy
 sends, steps of up to ``--step`` rad per joint, inside the FR3's limits. Measured per action,
@@ -29,9 +31,10 @@ import time
 
 import numpy as np
 
+from robogym_ray.robots.panda.controller import JointPositionController
 from robogym_ray.robots.panda.franky_arm import JOINT_STIFFNESS
 from robogym_ray.robots.panda.franky_sim import FrankySim
-from robogym_ray.robots.panda.model import READY
+from robogym_ray.robots.panda.model import LIMITS, READY
 
 
 def targets(seconds: float, rate: float, step: float, seed: int) -> np.ndarray:
@@ -50,21 +53,28 @@ def follow(host: str, mode: str, plan: np.ndarray, rate: float) -> dict[str, flo
     robot = franky.Robot(host, realtime_config=franky.RealtimeConfig.Ignore)
     robot.relative_dynamics_factor = 0.2
     robot.move(franky.JointMotion(plan[0].tolist()))
-    tracker = None
+    tracker, reference = None, None
     if mode == "impedance":  # franky's default stiffness, 50 N m/rad on every joint
         tracker = franky.JointImpedanceTracker(robot)
-    elif mode == "impedance-stiff":  # the backend's: Franka's joint impedance example gains
+    elif mode == "backend":  # the simulated arm's reference at 100 Hz, Franka's example gains
         tracker = franky.JointImpedanceTracker(robot, stiffness=np.array(JOINT_STIFFNESS))
+        reference = JointPositionController(LIMITS["fr3"].velocity, *_box())
+        reference.reset(plan[0])
     period, sample = 1.0 / rate, 0.01
     q_log, dq_log, errors = [], [], []
     start = time.perf_counter()
     for i, target in enumerate(plan):
-        if tracker is not None:
+        if reference is not None:
+            reference.command(target)
+        elif tracker is not None:
             tracker.set_target(target)
         else:
             robot.move(franky.JointMotion(target.tolist()), asynchronous=True)
         cycle_end = start + (i + 1) * period
         while (now := time.perf_counter()) < cycle_end:
+            if reference is not None:
+                reference.step(sample)
+                tracker.set_target(reference.position)
             state = robot.state
             q_log.append(np.array(state.q))
             dq_log.append(np.array(state.dq))
@@ -86,6 +96,10 @@ def follow(host: str, mode: str, plan: np.ndarray, rate: float) -> dict[str, flo
     }
 
 
+def _box() -> tuple[np.ndarray, np.ndarray]:
+    return LIMITS["fr3"].lower, LIMITS["fr3"].upper
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seconds", type=float, default=20.0)
@@ -95,7 +109,7 @@ def main() -> None:
     args = parser.parse_args()
     plan = targets(args.seconds, args.rate, args.step, args.seed)
     results = {}
-    for mode in ("motion", "impedance", "impedance-stiff"):
+    for mode in ("motion", "impedance", "backend"):
         with FrankySim() as sim:  # a fresh arm for each, from the same pose
             results[mode] = follow(sim.host, mode, plan, args.rate)
     print(json.dumps({"args": vars(args), "results": results}, indent=2))

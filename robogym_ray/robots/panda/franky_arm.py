@@ -9,10 +9,13 @@ the wall clock (the server's real-time mode; nothing is simulated here).
 wire                      on the arm
 ========================  ==================================================================
 SendAction                checked as the simulated arm checks it (7 values, finite, within the
-                          model's limits: ``checks.py``), then streamed as the reference of one
-                          ``JointImpedanceTracker`` at the action rate (``benchmarks/
-                          franky_tracking.py``: it tracks closer and far more smoothly than a
-                          preempting ``JointMotion`` per target at 25 Hz)
+                          model's limits: ``checks.py``), then the target of the simulated arm's
+                          own reference (``controller.JointPositionController``: straight
+                          joint-space segments at ``max_velocity_scale_factor`` x the speed
+                          limits), which one ``JointImpedanceTracker`` follows at the actuation
+                          rate (``benchmarks/franky_tracking.py``: smoother and closer than a
+                          preempting ``JointMotion`` per target, and stable where raw targets
+                          jumping every action are not)
 SetState                  the joint goal checked, then a ``JointMotion`` to it at the reduced
                           ``relative_dynamics_factor`` of ``HardwareConfig`` (capped by the card)
 GetState                  joints (q, dq, tau_J), the ``ee_frame`` pose from libfranka's
@@ -50,6 +53,7 @@ from robogym_ray.robots.hardware import HardwareConfig
 from robogym_ray.robots.objects import build_trajectory
 from robogym_ray.robots.panda.checks import check_joint_action, check_joint_goal
 from robogym_ray.robots.panda.config import PandaConfig
+from robogym_ray.robots.panda.controller import JointPositionController
 from robogym_ray.robots.panda.model import HAND_YAW, quat_xyzw
 from robogym_ray.robots.panda.state import N_OBJECTS, compose_state, sensor_groups
 
@@ -70,6 +74,8 @@ class FrankyArm(SimRobot):
             ee_frame, action rate).
         hardware: the arm's address and the reset's dynamics factor.
         lower, upper: the model's joint limits (rad), what commands and goals are checked on.
+        velocity: the model's joint speed limits (rad/s), scaled by the config's
+            ``max_velocity_scale_factor`` for the reference the arm follows.
     """
 
     def __init__(
@@ -79,6 +85,7 @@ class FrankyArm(SimRobot):
         hardware: HardwareConfig,
         lower: np.ndarray,
         upper: np.ndarray,
+        velocity: np.ndarray,
     ) -> None:
         import franky  # the optional extra: only a hardware server needs it
 
@@ -96,6 +103,11 @@ class FrankyArm(SimRobot):
         """Why the arm stopped ("" while healthy); latched until ``recover``."""
         self.faults = 0
         self._tracker: Any = None
+        self._reference = JointPositionController(
+            config.max_velocity_scale_factor * np.asarray(velocity, float), self.lower, self.upper
+        )
+        self._streaming = False
+        """A command arrived since the last reset: the tracker follows the reference."""
         self._last_command: np.ndarray | None = None
         self._in_collision = False
         self._objects: list[Any] = [None] * N_OBJECTS[config.rs_mode]
@@ -104,6 +116,7 @@ class FrankyArm(SimRobot):
         self._robot = self._connect()
         self._last: dict[str, np.ndarray] = {}
         self._last = self.read_sensors()
+        self._reference.reset(self._last["joints"][:7])
 
     # -- connection ---------------------------------------------------------------------------
     def _connect(self) -> Any:
@@ -135,6 +148,8 @@ class FrankyArm(SimRobot):
                 raise RobotFaultError(f"{self.name}: recover_from_errors failed: {exc}") from None
         self.fault, self._tracker, self._last_command = "", None, None
         self._last = self.read_sensors()
+        self._reference.reset(self._last["joints"][:7])
+        self._streaming = False
         log.warning("%s: recovered from errors; the next SetState moves it to its goal", self.name)
 
     # -- actions ------------------------------------------------------------------------------
@@ -145,14 +160,25 @@ class FrankyArm(SimRobot):
         )
 
     def publish(self, command: np.ndarray | None) -> None:
-        # None (no new command this tick): the tracker holds its last reference.
+        # None (no new command this tick): the reference keeps heading for its last target.
         if command is None or command is self._last_command or self.fault:
             return
+        # The handler republishes the same array during one action: a delta becomes a target
+        # once per action, from the reference, as the simulated arm computes it.
         self._last_command = command
         target = np.asarray(command, dtype=np.float64)
         if self.config.action_mode == "delta_pos":
-            target = target + self._last["joints"][:7]
-        target = np.clip(target, self.lower, self.upper)
+            target = target + self._reference.position
+        self._reference.command(target)  # clipped into the limits there
+        self._streaming = True
+
+    def advance(self, dt: float) -> None:
+        # The arm's time is the wall clock's: the reference moves by one actuation tick and
+        # the tracker is handed its position. Polling the motion
+        # surfaces a failure of libfranka's control thread (a reflex aborts the tracker).
+        if self.fault or not self._streaming:
+            return
+        self._reference.step(dt)
         try:
             if self._tracker is None:
                 self._tracker = self._franky.JointImpedanceTracker(
@@ -161,19 +187,12 @@ class FrankyArm(SimRobot):
                     lower_joint_limits=self.lower,
                     upper_joint_limits=self.upper,
                 )
-            self._tracker.set_target(target)
-        except Exception as exc:  # noqa: BLE001
-            self._fail(f"streaming a joint target failed: {exc}")
-
-    def advance(self, dt: float) -> None:
-        # Time passes on the arm, not here; this tick only surfaces a motion's failure
-        # (a reflex aborts the tracker's motion in libfranka's control thread).
-        if self.fault or self._tracker is None:
-            return
-        try:
+            # No velocity feed-forward: the reference's velocity jumps at each new target, and
+            # fed through the damping term it shook the arm (franky-sim, 2026-11-28).
+            self._tracker.set_target(self._reference.position)
             self._robot.poll_motion()
         except Exception as exc:  # noqa: BLE001
-            self._fail(str(exc))
+            self._fail(f"following the joint reference failed: {exc}")
 
     # -- state ---------------------------------------------------------------------------------
     def set_state(self, request: StateRequest) -> None:
@@ -205,6 +224,8 @@ class FrankyArm(SimRobot):
         self._in_collision = False
         self._last_command = None
         self._last = self.read_sensors()
+        self._reference.reset(goal)
+        self._streaming = False
 
     def read_sensors(self, groups: Iterable[str] | None = None) -> dict[str, np.ndarray]:
         wanted = self.groups if groups is None else tuple(groups)
@@ -297,4 +318,4 @@ def make_franky_arm(model: str, options: Mapping[str, str], hardware: HardwareCo
 
     limits = LIMITS[model]
     config = parse_options(model, None, options)
-    return FrankyArm(model, config, hardware, limits.lower, limits.upper)
+    return FrankyArm(model, config, hardware, limits.lower, limits.upper, limits.velocity)
