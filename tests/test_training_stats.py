@@ -76,6 +76,22 @@ def test_scalars_say_no_rate_before_an_episode_and_the_rates_after() -> None:
     assert out["train/return_last100"] == 0.5 and out["eval/best_snapshot_success_rate"] == 0.9
 
 
+def test_a_real_robot_beside_simulations_gets_its_own_counts_and_curve() -> None:
+    s = RunStats(env_steps=0)
+    stats.record(s, result(0, 30, Episode(1.0, 30, "success", 0)))
+    assert not any(k.startswith(("sim/", "real/")) for k in scalars(s))  # one kind: no split
+    stats.record(s, result(2, 12, Episode(0.0, 12, "max_steps_exceeded", 2)), kind="real")
+    stats.record(s, result(2, 8, Episode(1.0, 8, "success", 2)), kind="real")
+    out = scalars(s)
+    assert (out["real/env_steps"], out["real/episodes"], out["real/success_rate"]) == (20, 2, 0.5)
+    assert (out["sim/env_steps"], out["sim/episodes"], out["sim/success_rate"]) == (30, 1, 1.0)
+    summary = stats.summary(s, {"learner/steps": 0.0})
+    assert summary["by_kind"]["real"] == {
+        "env_steps": 20, "episodes": 2,
+        "statuses_last100": {"max_steps_exceeded": 1, "success": 1},
+    }  # fmt: skip
+
+
 def test_run_root_is_logdir_or_an_older_summarys_storage_root() -> None:
     assert stats.run_root({"logdir": "/r/a", "storage": {"node": "vm"}}) == "/r/a"
     older = {"storage": {"root": "s3://b/r/a", "node": "(object store)"}}

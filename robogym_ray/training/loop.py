@@ -167,7 +167,7 @@ class TrainingLoop:
                     pending[self._collect(slot)] = slot
                 continue
             supervised = p.supervision is not None and slot.kind == "sim"
-            for ep in stats.record(self.stats, result, supervised):
+            for ep in stats.record(self.stats, result, supervised, slot.kind):
                 logger.scalar("episode/return", ep.ret, self.stats.env_steps)
                 logger.scalar("episode/length", ep.length, self.stats.env_steps)
             logger.advance(result.steps)

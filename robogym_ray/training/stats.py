@@ -39,6 +39,15 @@ def no_restarts() -> Counter[str]:
 
 
 @dataclass
+class KindStats:
+    """One kind of worker's share of the run."""
+
+    env_steps: int = 0
+    episodes: int = 0
+    statuses: deque[str] = field(default_factory=lambda: deque(maxlen=100))
+
+
+@dataclass
 class RunStats:
     """Counters of one run; ``statuses`` and ``returns`` keep the last 100 episodes."""
 
@@ -57,6 +66,9 @@ class RunStats:
     """Real-robot calls still running when the run ended (a paused robot), not collected."""
     robot_errors: int = 0
     worker_steps: dict[int, int] = field(default_factory=dict)
+    by_kind: dict[str, KindStats] = field(default_factory=dict)
+    """Env steps, episodes and last statuses of each kind of worker (``sim``, ``real``), kept
+    apart only when a run has more than one kind: a real robot's curve beside the simulations'."""
     statuses: deque[str] = field(default_factory=lambda: deque(maxlen=100))
     """Of the last 100 episodes that were not revisits (their rates are the task's)."""
     revisits: int = 0
@@ -73,11 +85,15 @@ class RunStats:
     """Each learner process Ray restarted: when, where, and what it restored (the loop's)."""
 
 
-def record(stats: RunStats, result: RolloutResult, supervised: bool = False) -> list[Episode]:
+def record(
+    stats: RunStats, result: RolloutResult, supervised: bool = False, kind: str = "sim"
+) -> list[Episode]:
     """Count a worker's result; returns its episodes that count toward the task's rates.
 
     Revisited starts are harder than the task's own, so they are counted apart (``revisits``,
     ``revisit_statuses``) and kept out of ``statuses`` and ``returns``.
+
+    ``kind``: the worker's (``sim`` or ``real``), whose own counts ``by_kind`` keeps.
 
     ``supervised``: the worker's servers are the supervisor's (gRPC path). The supervisor
     restarts them and counts each restart once, by the first cause it saw (often its own probe's
@@ -88,6 +104,9 @@ def record(stats: RunStats, result: RolloutResult, supervised: bool = False) -> 
     stats.dropped_steps += result.dropped
     stats.robot_errors += result.robot_errors
     stats.worker_steps[result.worker] = stats.worker_steps.get(result.worker, 0) + result.steps
+    share = stats.by_kind.setdefault(kind, KindStats())
+    share.env_steps += result.steps
+    share.episodes += len(result.episodes)
     for cause, n in ({} if supervised else result.faults).items():
         stats.restarts[FaultCause.parse(cause).value] += n
     counted = []
@@ -98,6 +117,7 @@ def record(stats: RunStats, result: RolloutResult, supervised: bool = False) -> 
             stats.revisit_statuses.append(ep.final_status)
             continue
         stats.statuses.append(ep.final_status)
+        share.statuses.append(ep.final_status)
         stats.returns.append(ep.ret)
         counted.append(ep)
     return counted
@@ -169,6 +189,12 @@ def scalars(
         "faults/robot_errors": float(s.robot_errors),
     })  # fmt: skip
     out.update({f"restarts/{cause}": float(n) for cause, n in restarts.items()})
+    if len(s.by_kind) > 1:  # a real robot beside simulations: each kind's own curve
+        for kind, share in s.by_kind.items():
+            out[f"{kind}/env_steps"] = float(share.env_steps)
+            out[f"{kind}/episodes"] = float(share.episodes)
+            if share.statuses:
+                out[f"{kind}/success_rate"] = rates(share.statuses)["success_rate"]
     return out
 
 
@@ -182,6 +208,14 @@ def summary(stats: RunStats, final: Mapping[str, float], **facts: Any) -> dict[s
         "learner_steps": int(final["learner/steps"]),
         "dropped_steps": stats.dropped_steps,
         "worker_steps": {str(k): v for k, v in sorted(stats.worker_steps.items())},
+        "by_kind": {
+            kind: {
+                "env_steps": share.env_steps,
+                "episodes": share.episodes,
+                "statuses_last100": dict(Counter(share.statuses)),
+            }
+            for kind, share in stats.by_kind.items()
+        },  # fmt: skip
         "robot_errors": stats.robot_errors,
         "abandoned_real_calls": stats.abandoned_real_calls,
         "eval_history": stats.eval_history,
