@@ -32,6 +32,8 @@ from typing import Any
 from robogym_ray.storage import local_run, read_text
 
 TAGS = ("train/success_rate", "eval/success_rate")
+KIND_TAGS = ("sim/success_rate", "real/success_rate", "eval/success_rate")
+"""A run with ``--real-robot``: the simulated workers', the real robot's and the evaluator's."""
 FIRST_EPISODE_TAG = "episode/return"  # written once per finished episode
 STATUS_COLOURS = {"success": "tab:green", "collision": "tab:red",
                   "max_steps_exceeded": "tab:orange"}  # fmt: skip
@@ -90,13 +92,16 @@ def read_stitched(
     return {tag: curve for tag, curve in out.items() if curve[0]}, starts
 
 
-def plot_success(runs: Mapping[str, Sequence[str | Path]], out: str | Path) -> Path:
-    """One panel per problem: train and eval success rate (last 100 episodes) vs env steps."""
+def plot_success(
+    runs: Mapping[str, Sequence[str | Path]], out: str | Path, tags: Sequence[str] = TAGS
+) -> Path:
+    """One panel per problem: the ``tags``' success rates (last 100 episodes) vs env steps (by
+    default train and eval; ``KIND_TAGS``: a real robot's beside the simulated workers')."""
     plt = _pyplot()
     fig, axes = plt.subplots(1, len(runs), figsize=(5.5 * len(runs), 4), squeeze=False)
     for ax, (title, run_dirs) in zip(axes[0], runs.items(), strict=True):
-        scalars, starts = read_stitched(run_dirs)
-        for tag, style in zip(TAGS, ("-", "--"), strict=True):
+        scalars, starts = read_stitched(run_dirs, tags)
+        for tag, style in zip(tags, ("-", "--", ":"), strict=False):
             if tag in scalars:
                 steps, values = scalars[tag]
                 ax.plot(steps, values, style, label=tag.split("/")[0])
@@ -315,6 +320,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument(
         "--positioning", nargs="+", help="Run directory of the positioning training" + more
     )
+    parser.add_argument(
+        "--real-beside-sim", nargs="+", metavar="RUN",
+        help="Run directory of a training with --real-robot" + more + ": the robot's success "
+        "beside the simulated workers' and the evaluator's (real_beside_sim.png).",
+    )  # fmt: skip
     parser.add_argument("--ur-eval", help="evaluation.json of the UR10 final evaluation.")
     parser.add_argument(
         "--mir-eval", help="evaluation.json of a MiR100 evaluation made with evaluate --paths."
@@ -349,6 +359,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     written = []
     if runs:
         written.append(plot_success(runs, out / "success_rate.png"))
+    if args.real_beside_sim:
+        runs = {"a real robot beside simulated workers": args.real_beside_sim}
+        written.append(plot_success(runs, out / "real_beside_sim.png", KIND_TAGS))
     if args.ur_eval:
         written.append(plot_targets(args.ur_eval, out / "ur_targets.png"))
     if args.mir_eval:
@@ -367,8 +380,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         written.append(figure)
         print(json.dumps({"first_snapshot_at": first}))
     if not written:
-        parser.error("nothing to plot: give --navigation, --positioning, --ur-eval, --mir-eval, "
-                     "--time-to or --curves")  # fmt: skip
+        parser.error("nothing to plot: give --navigation, --positioning, --real-beside-sim, "
+                     "--ur-eval, --mir-eval, --time-to or --curves")  # fmt: skip
     print(json.dumps([str(p) for p in written]))
     return 0
 

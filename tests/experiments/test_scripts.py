@@ -183,6 +183,26 @@ def test_figures_from_tensorboard_and_an_evaluation(tmp_path: Path) -> None:
         assert (out / name).stat().st_size > 10_000
 
 
+def test_a_real_robots_curve_beside_the_simulated_workers(tmp_path: Path) -> None:
+    pytest.importorskip("matplotlib")
+    from torch.utils.tensorboard import SummaryWriter
+
+    run = tmp_path / "run"
+    writer = SummaryWriter(str(run))
+    writer.add_scalar("episode/return", 0.0, 0)  # the first episode's step
+    for step in range(5):
+        writer.add_scalar("sim/success_rate", step / 4, step * 100)
+        writer.add_scalar("real/success_rate", step / 8, step * 100)
+    writer.close()
+    figures = script("figures")
+    curves, _ = figures.read_stitched([run], figures.KIND_TAGS)
+    assert curves["real/success_rate"][1][-1] == pytest.approx(0.5)
+    assert "eval/success_rate" not in curves  # a tag the run lacks is left out, not drawn
+    out = tmp_path / "figs"
+    assert figures.main(["--real-beside-sim", str(run), "--out", str(out)]) == 0
+    assert (out / "real_beside_sim.png").stat().st_size > 10_000
+
+
 def test_time_to_success_counts_only_full_evaluation_windows(tmp_path: Path) -> None:
     pytest.importorskip("matplotlib")
     figures = script("figures")
