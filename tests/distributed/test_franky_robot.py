@@ -8,6 +8,7 @@ is mocked: libfranka's TCP/UDP protocol runs between franky and the simulator, i
 
 from __future__ import annotations
 
+import time
 from collections.abc import Iterator
 
 import gymnasium as gym
@@ -103,8 +104,14 @@ def test_rob_env_resets_steps_and_reports_what_franky_reports(fr3: RobotServerHa
         np.testing.assert_allclose(ee, xyz, atol=1e-4)
         # The joints are franky's, a few ms apart at most while the arm holds its pose.
         np.testing.assert_allclose(q, np.array(_franky_state(fr3).q), atol=5e-3)
-        # Reset drove the arm to the task's start pose (libfranka's controller, real dynamics).
         assert fr3.core.calls["set"] >= 1 and fr3.core.calls["action"] >= STEPS
+        # A client that goes quiet mid-move (a training stopped): the arm stops short of the
+        # move's target instead of finishing it with nobody watching.
+        far = q.copy()
+        far[0] += 1.2
+        task.client.send_action(far)
+        time.sleep(1.0)  # the move takes seconds at the task's speed; the stop comes at 80 ms
+        assert abs(_franky_state(fr3).q[0] - far[0]) > 0.8
     finally:
         env.close()
 

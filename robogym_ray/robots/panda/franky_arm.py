@@ -108,6 +108,7 @@ class FrankyArm(SimRobot):
         )
         self._streaming = False
         """A command arrived since the last reset: the tracker follows the reference."""
+        self._quiet_ticks = 0
         self._last_command: np.ndarray | None = None
         self._in_collision = False
         self._objects: list[Any] = [None] * N_OBJECTS[config.rs_mode]
@@ -160,8 +161,17 @@ class FrankyArm(SimRobot):
         )
 
     def publish(self, command: np.ndarray | None) -> None:
-        # None (no new command this tick): the reference keeps heading for its last target.
-        if command is None or command is self._last_command or self.fault:
+        # None (no new command this tick): the reference keeps heading for its last target,
+        # unless the client has gone quiet for two action cycles (a training stopped, a client
+        # that vanished): then the arm stops where it is. Simulated time never passes without
+        # actions; the wall clock does, and an arm must not finish a move nobody follows.
+        if command is None:
+            self._quiet_ticks += 1
+            if self._quiet_ticks == 2 * self.handler_config.ticks_per_action:
+                self._reference.command(self._reference.position)
+            return
+        self._quiet_ticks = 0
+        if command is self._last_command or self.fault:
             return
         # The handler republishes the same array during one action: a delta becomes a target
         # once per action, from the reference, as the simulated arm computes it.
