@@ -3,7 +3,7 @@
 ``docs/results/navigation-sectors-11min/learner.pt`` is the policy part (online and averaged
 nets) of a navigation checkpoint written before the package was restructured, and
 ``evaluation.json`` beside it is what ``robogym-ray evaluate`` made of it then (300 episodes,
-seeds 1000+). Re-running its first episodes through today's code must give the same episodes:
+seeds 1000+). Re-running its first episodes through the current code must give the same episodes:
 same outcome, same length, same target, and the same return up to the floating point of the
 CPU it runs on.
 
