@@ -39,7 +39,6 @@ from __future__ import annotations
 
 import contextlib
 import logging
-import math
 import time
 from collections.abc import Iterable, Mapping
 from typing import Any
@@ -52,9 +51,9 @@ from robogym_ray.robots.command_handler import CommandHandlerConfig
 from robogym_ray.robots.hardware import HardwareConfig
 from robogym_ray.robots.objects import build_trajectory
 from robogym_ray.robots.panda.checks import check_joint_action, check_joint_goal
-from robogym_ray.robots.panda.config import PandaConfig
+from robogym_ray.robots.panda.config import PandaConfig, parse_options
 from robogym_ray.robots.panda.controller import JointPositionController
-from robogym_ray.robots.panda.model import HAND_YAW, quat_xyzw
+from robogym_ray.robots.panda.model import HAND_YAW, LIMITS, quat_xyzw, rot_z
 from robogym_ray.robots.panda.state import N_OBJECTS, compose_state, sensor_groups
 
 log = logging.getLogger(__name__)
@@ -183,9 +182,9 @@ class FrankyArm(SimRobot):
         self._streaming = True
 
     def advance(self, dt: float) -> None:
-        # The arm's time is the wall clock's: the reference moves by one actuation tick and
-        # the tracker is handed its position. Polling the motion
-        # surfaces a failure of libfranka's control thread (a reflex aborts the tracker).
+        # The arm's time is the wall clock's: the reference moves by one actuation tick and the
+        # tracker is handed its position. Polling the motion surfaces a failure of libfranka's
+        # control thread (a reflex aborts the tracker).
         if self.fault or not self._streaming:
             return
         self._reference.step(dt)
@@ -268,10 +267,10 @@ class FrankyArm(SimRobot):
         includes the tool offset set in Desk, ``F_T_EE``) taken back to the flange, then the
         hand's mounting yaw for ``panda_hand``."""
         flange = np.asarray(state.O_T_EE.matrix) @ np.linalg.inv(np.asarray(state.F_T_EE.matrix))
-        if self.config.ee_frame == "panda_hand":
-            c, s = math.cos(HAND_YAW), math.sin(HAND_YAW)
-            flange = flange @ np.array([[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]])
-        return np.concatenate([flange[:3, 3], quat_xyzw(flange[:3, :3])])
+        rotation = flange[:3, :3]
+        if self.config.ee_frame == "panda_hand":  # as forward_kinematics turns the flange
+            rotation = rotation @ rot_z(HAND_YAW)
+        return np.concatenate([flange[:3, 3], quat_xyzw(rotation)])
 
     def compose(self, groups: Mapping[str, np.ndarray]) -> StateSnapshot:
         self._refuse_if_faulted("GetState")
@@ -323,9 +322,6 @@ class FrankyArm(SimRobot):
 def make_franky_arm(model: str, options: Mapping[str, str], hardware: HardwareConfig) -> FrankyArm:
     """Registry factory of the ``franky`` backend: the arm ``model`` (``fr3``) at
     ``hardware.fci_host``, configured by launch-style ``options`` as the simulated one is."""
-    from robogym_ray.robots.panda.config import parse_options
-    from robogym_ray.robots.panda.model import LIMITS
-
     limits = LIMITS[model]
     config = parse_options(model, None, options)
     return FrankyArm(model, config, hardware, limits.lower, limits.upper, limits.velocity)

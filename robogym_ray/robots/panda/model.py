@@ -120,7 +120,8 @@ def _rot_x(angle: float) -> np.ndarray:
     return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
 
 
-def _rot_z(angle: float) -> np.ndarray:
+def rot_z(angle: float) -> np.ndarray:
+    """The rotation by ``angle`` (rad) about z."""
     c, s = math.cos(angle), math.sin(angle)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
@@ -153,11 +154,11 @@ def forward_kinematics(q: np.ndarray | list[float]) -> dict[str, tuple[np.ndarra
     for i, ((a, d, alpha), theta) in enumerate(zip(DH, joints, strict=True)):
         xyz, roll = joint_origin(a, d, alpha)
         pos = pos + rot @ xyz
-        rot = rot @ _rot_x(roll) @ _rot_z(float(theta))
+        rot = rot @ _rot_x(roll) @ rot_z(float(theta))
         frames[LINK_NAMES[i]] = (pos.copy(), rot.copy())
     pos = pos + rot @ np.array([0.0, 0.0, FLANGE_D])
     frames["panda_link8"] = (pos.copy(), rot.copy())
-    frames["panda_hand"] = (pos.copy(), rot @ _rot_z(HAND_YAW))
+    frames["panda_hand"] = (pos.copy(), rot @ rot_z(HAND_YAW))
     return {name: (xyz, quat_xyzw(r)) for name, (xyz, r) in frames.items()}
 
 
@@ -213,7 +214,7 @@ def _capsule_xml(radius: float, a, b) -> str:
 
 
 def _box_xml(half, centre, yaw: float) -> str:
-    xyz = _rot_z(yaw) @ np.asarray(centre, float)
+    xyz = rot_z(yaw) @ np.asarray(centre, float)
     size = [2 * h for h in half]
     return (
         f'    <collision><origin xyz="{_fmt(xyz)}" rpy="0 0 {yaw:.10g}"/>'
