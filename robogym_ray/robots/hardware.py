@@ -53,10 +53,11 @@ class HardwareConfig:
 
 
 def make_hardware_robot(
-    robot: str, backend: str, options: Mapping[str, str], hardware: HardwareConfig
+    robot: str, options: Mapping[str, str], hardware: HardwareConfig
 ) -> SimRobot:
-    """The real ``robot`` through ``backend``; ConfigError for a robot without that backend or a
-    dynamics factor above the card's cap, before anything is connected."""
+    """The real ``robot`` through ``hardware.backend``; ConfigError for a robot without that
+    backend or a dynamics factor above the card's cap, before anything is connected."""
+    backend = hardware.backend
     card = robot_card(robot)
     backends = card.hardware
     if backends is None or backend not in backends.factories:

@@ -381,7 +381,7 @@ def start_robot_server(
         from robogym_ray.robots.hardware import make_hardware_robot
 
         real_time = True
-        sim_robot: SimRobot = make_hardware_robot(robot, hardware.backend, options or {}, hardware)
+        sim_robot: SimRobot = make_hardware_robot(robot, options or {}, hardware)
     else:
         sim_robot = make_robot(robot, scene=scene, seed=seed, options=options)
     if emulation is not None:

@@ -25,7 +25,7 @@ def test_only_the_fr3_has_a_hardware_backend_and_its_card_caps_the_reset_dynamic
 )
 def test_refused_before_connecting(robot: str, config: HardwareConfig, message: str) -> None:
     with pytest.raises(ConfigError, match=message):
-        make_hardware_robot(robot, config.backend, {}, config)
+        make_hardware_robot(robot, {}, config)
 
 
 @pytest.mark.parametrize(
@@ -53,4 +53,4 @@ def test_an_address_without_an_arm_is_one_clear_error() -> None:
     pytest.importorskip("franky")
     # Nothing listens on 127.0.0.2's FCI port: libfranka's TCP connect is refused at once.
     with pytest.raises(RobotFaultError, match="cannot connect to the arm's FCI at 127.0.0.2"):
-        make_hardware_robot("fr3", "franky", {}, HardwareConfig("franky", "127.0.0.2"))
+        make_hardware_robot("fr3", {}, HardwareConfig("franky", "127.0.0.2"))
