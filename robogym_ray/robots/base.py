@@ -121,5 +121,9 @@ class SimRobot(ABC):
             str(getattr(config, "action_mode", "")),
         )
 
+    def recover(self) -> None:  # noqa: B027 - optional hook, default does nothing
+        """Clear the robot's errors (RecoverFromErrors, an operator's resume); raise if it
+        cannot. A simulated robot has none: hardware backends override this."""
+
     def close(self) -> None:  # noqa: B027 - optional hook, default does nothing
         """Release the PyBullet client and any other resources."""

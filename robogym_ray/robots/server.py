@@ -114,9 +114,7 @@ class RobotServerCore:
         """RecoverFromErrors: a hardware robot clears its errors (raises if it cannot); a
         simulated one has none. The handler's queue is dropped: nothing stale moves the arm."""
         with self._lock:
-            recover = getattr(self.robot, "recover", None)
-            if recover is not None:
-                recover()
+            self.robot.recover()
             self.handler.clear()
             self.buffer.update(**self.robot.read_sensors())
 
