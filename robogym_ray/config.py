@@ -380,10 +380,23 @@ def check_dir_path(path: str | os.PathLike, what: str) -> None:
             return
 
 
+def is_address(address: object) -> bool:
+    """Whether ``address`` is ``HOST:PORT`` with a port in [1, 65535]."""
+    host, sep, port = address.rpartition(":") if isinstance(address, str) else ("", "", "")
+    return bool(sep and host and port.isdigit() and 0 < int(port) <= 65535)
+
+
+def is_ray_address(address: object) -> bool:
+    """Whether ``address`` is one ``ray.init`` joins: auto, HOST:PORT or ray://HOST:PORT
+    (anything else fails only once Ray is asked, with a traceback)."""
+    if address == "auto":
+        return True
+    return is_address(address.removeprefix("ray://") if isinstance(address, str) else address)
+
+
 def check_address(address: object, what: str) -> None:
     """ConfigError unless ``address`` is ``HOST:PORT`` with a port in [1, 65535]."""
-    host, sep, port = address.rpartition(":") if isinstance(address, str) else ("", "", "")
-    if not sep or not host or not port.isdigit() or not 0 < int(port) <= 65535:
+    if not is_address(address):
         raise ConfigError(f"{what} {quote(address)} is not HOST:PORT (port 1-65535)")
 
 
@@ -396,6 +409,8 @@ def check_port(port: object, what: str) -> None:
 
 def check_ray_address(address: object, what: str) -> None:
     """ConfigError unless ``address`` is one ``ray.init`` joins: auto, HOST:PORT or
-    ray://HOST:PORT (anything else fails only once Ray is asked, with a traceback)."""
-    if address != "auto":
-        check_address(address.removeprefix("ray://") if isinstance(address, str) else address, what)
+    ray://HOST:PORT."""
+    if not is_ray_address(address):
+        raise ConfigError(
+            f"{what} {quote(address)} is not auto, HOST:PORT or ray://HOST:PORT (port 1-65535)"
+        )

@@ -85,12 +85,13 @@ def train_main(
     default_config: Path, argv: Sequence[str] | None = None, description: str = ""
 ) -> dict[str, Any]:
     """Parse the flags, train, print and return the run summary."""
-    from robogym_ray.training.presets import resolve_task
-    from robogym_ray.training.run import run_training
+    from robogym_ray.config import FLAGS
+    from robogym_ray.training.api import run_checked
+    from robogym_ray.training.settings import TrainSetup
 
     args = build_parser(default_config, description).parse_args(argv)
     cfg, d4pg, emulation = experiment_configs(args)
-    resolve_task(cfg.task)  # fail before Ray starts on a bad task
-    summary = run_training(cfg, d4pg, emulation)
+    # The command's checks, before Ray starts: a bad task, a taken run name, too few CPUs, ...
+    summary = run_checked(TrainSetup(cfg, d4pg, emulation), FLAGS)
     print(json.dumps(summary), flush=True)
     return summary

@@ -266,9 +266,13 @@ def test_addresses_are_checked_before_anything_starts(
     line = fails(capfd, "evaluate", str(out), "--rs-address", "robot:70000")
     assert "--rs-address 'robot:70000'" in line
     line = fails(capfd, "resume-robot", "arm", "--ray-address", "nowhere")
-    assert line == "error: --ray-address 'nowhere' is not HOST:PORT (port 1-65535)"
+    assert line == (
+        "error: --ray-address 'nowhere' is not auto, HOST:PORT or ray://HOST:PORT (port 1-65535)"
+    )
     line = fails(capfd, "manager", "--port", "0", "--ray-address", "nowhere")
-    assert line == "error: --ray-address 'nowhere' is not HOST:PORT (port 1-65535)"
+    assert line == (
+        "error: --ray-address 'nowhere' is not auto, HOST:PORT or ray://HOST:PORT (port 1-65535)"
+    )
 
 
 def test_train_checks_cpus_and_logdir_before_ray(
@@ -399,3 +403,16 @@ def test_the_python_entrys_errors_name_its_keywords(tmp_path: Path) -> None:
     assert line == f"resume=True: {runs / 'none'} has no checkpoint to continue from"
     line = refused(storage="/proc/x")
     assert line == "storage /proc/x: cannot write there (no such file or directory)"
+    # TrainConfig's own checks and the ones before Ray starts, worded for a Python call too.
+    assert "TrainConfig.real_robot=('nohost',); expected HOST:PORT" in refused(
+        real_robot=["nohost"]
+    )
+    assert "TrainConfig.address='nohost'; expected null, auto" in refused(address="nohost")
+    assert "TrainConfig.tls_ca='ca.pem'; expected only with a real robot" in refused(
+        tls_ca="ca.pem"
+    )
+    ca = tmp_path / "missing.pem"
+    line = refused(real_robot=["127.0.0.1:1"], tls_ca=str(ca))
+    assert line.startswith(f"tls_ca {ca}: cannot read it"), line
+    line = refused(emulated_workers=1)
+    assert line == "emulated_workers=1 needs a robot task; Pendulum-v1 has none", line

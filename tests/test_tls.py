@@ -207,7 +207,7 @@ def test_serve_and_manager_refuse_half_a_tls_pair(capfd: pytest.CaptureFixture, 
 @pytest.mark.usefixtures("ray_must_not_start")
 def test_train_checks_its_tls_ca_before_ray(capfd: pytest.CaptureFixture, pki: Pki) -> None:
     err = _one_line_error(capfd, "train", "--tls-ca", str(pki.ca))
-    assert "--tls-ca is for the servers of --real-robot" in err
+    assert "--tls-ca " in err and "expected only with a real robot (the CA is for its" in err
     missing = str(pki.ca.with_name("missing.pem"))
     err = _one_line_error(capfd, "train", "--real-robot", "127.0.0.1:1", "--tls-ca", missing)
     assert f"--tls-ca {missing}: cannot read it" in err

@@ -101,4 +101,4 @@ def run_checked(setup: TrainSetup, words: Words = KEYWORDS) -> dict[str, Any]:
     from robogym_ray.training.setup import check_inputs
 
     check_inputs(setup, words=words)  # a bad input costs no Ray start and leaves no folder
-    return run_training(setup.train, setup.d4pg, setup.emulation)
+    return run_training(setup.train, setup.d4pg, setup.emulation, words=words)

@@ -4,8 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from robogym_ray.config import check_address, check_ranges, check_ray_address
-from robogym_ray.errors import ConfigError
+from robogym_ray.config import check_ranges, is_address, is_ray_address
 
 SIM_PATHS = ("inprocess", "grpc")
 DEFAULT_TOTAL_STEPS = 3000
@@ -236,16 +235,18 @@ class TrainConfig:
             (self.log_every_s >= 0, "log_every_s", ">= 0"),
             (self.learner_gpus >= -1, "learner_gpus", ">= 0, or -1 for one if there is any"),
             (bool(self.logdir), "logdir", "a directory name"),
+            (all(map(is_address, self.real_robot)), "real_robot", "HOST:PORT each (port 1-65535)"),
+            (
+                self.tls_ca is None or bool(self.real_robot),
+                "tls_ca",
+                "only with a real robot (the CA is for its server)",
+            ),
+            (
+                self.address is None or is_ray_address(self.address),
+                "address",
+                "null, auto, HOST:PORT or ray://HOST:PORT",
+            ),
         ]
+        # FieldErrors: the command line names the flag, a Python call the keyword.
         check_ranges("TrainConfig", ((ok, name, getattr(self, name), expected)
                                      for ok, name, expected in checks))  # fmt: skip
-        for address in self.real_robot:
-            check_address(address, "--real-robot")
-        if self.tls_ca is not None:
-            if not self.real_robot:
-                raise ConfigError("--tls-ca is for the servers of --real-robot: add one")
-            from robogym_ray.protocol.tls import read_ca  # grpc: only when asked for
-
-            read_ca(self.tls_ca)  # an unreadable file or no certificate: one line, before Ray
-        if self.address is not None:
-            check_ray_address(self.address, "--address")

@@ -34,6 +34,7 @@ import numpy as np
 import ray
 from ray.exceptions import RayError
 
+from robogym_ray.config import FLAGS, Words
 from robogym_ray.distributed import remote
 from robogym_ray.distributed.real_client import RealRobotClientFactory
 from robogym_ray.distributed.storage_check import check_reachable
@@ -71,10 +72,11 @@ class Program:
         preset: TaskPreset,
         emulation: EmulationConfig,
         place: setup.RunPlace,
+        words: Words = FLAGS,
     ) -> None:
         self.cfg, self.d4pg, self.preset, self.emulation = cfg, d4pg, preset, emulation
         self.name = place.name
-        setup.check_resources(cfg)
+        setup.check_resources(cfg, words=words)  # the joined cluster's CPUs
         check_reachable(place.root)  # before anything of the run is written or started
         self.storage = place.storage
         try:

@@ -19,7 +19,7 @@ from typing import Any
 
 import ray
 
-from robogym_ray.errors import ConfigError
+from robogym_ray.config import FLAGS, Words
 from robogym_ray.robots.emulation import EmulationConfig
 from robogym_ray.training import setup
 from robogym_ray.training.config import TrainConfig
@@ -66,22 +66,22 @@ def run_training(
     d4pg_overrides: Mapping[str, Any] | None = None,
     emulation: EmulationConfig | None = None,
     control: RunControl | None = None,
+    words: Words = FLAGS,
 ) -> dict:
     """Run one training to completion; returns the summary (also in ``summary.json``).
 
     ``emulation`` is what the ``cfg.emulated_workers`` workers' robots differ by (default
     ``EmulationConfig()``, the emulated robot ``robogym-ray serve --emulate-hardware`` serves).
-    ``control``: a caller's hooks into the running loop (a Tune trial's).
+    ``control``: a caller's hooks into the running loop (a Tune trial's). ``words``: how the
+    checks made once Ray is joined (the run's name, the cluster's CPUs) name the settings.
     """
     preset = resolve_task(cfg.task)
     d4pg = d4pg_for(preset, d4pg_overrides, cfg)
-    if cfg.emulated_workers and not preset.env_id.startswith("RoboGymRay/"):
-        raise ConfigError(f"--emulated-workers needs a robot task; {preset.env_id} has none")
-    place = setup.run_place(cfg, preset.env_id)
+    place = setup.run_place(cfg, preset.env_id, words)
     cfg = replace(cfg, run_name=place.name)  # config.json records the name
     started_ray = setup.ensure_ray(cfg.address, cfg.num_cpus)
     try:
-        program = Program(cfg, d4pg, preset, emulation or EmulationConfig(), place)
+        program = Program(cfg, d4pg, preset, emulation or EmulationConfig(), place, words)
     except BaseException:
         if started_ray:
             ray.shutdown()

@@ -91,9 +91,10 @@ def check_inputs(
     setup: TrainSetup, *, own_cpus: float = 0.0, cpu_hint: str = "", words: Words = FLAGS
 ) -> None:
     """Everything the run reads, checked before Ray starts or its run directory is made: the
-    task, the D4PG settings, the log directory, the local Ray's CPUs (``check_resources``, with
-    ``own_cpus`` and ``cpu_hint``), ``--init-from``, the run name and that the storage can be
-    written. Errors name the settings in ``words``: flags, or ``robogym_ray.train``'s keywords."""
+    task, the D4PG settings, the CA file, the log directory, the local Ray's CPUs
+    (``check_resources``, with ``own_cpus`` and ``cpu_hint``), ``--init-from``, the run name
+    and that the storage can be written. Errors name the settings in ``words``: flags, or
+    ``robogym_ray.train``'s keywords."""
     cfg = setup.train
     if cfg.resume and not cfg.run_name:  # a default name is a new, empty folder
         name = words.name("run_name")
@@ -106,6 +107,15 @@ def check_inputs(
     except ConfigError as exc:  # its message repeats the name whole: a 1 MB one too
         raise ConfigError(str(exc).replace(repr(cfg.task), quote(cfg.task))) from None
     d4pg = d4pg_for(preset, setup.d4pg, cfg)
+    if cfg.tls_ca is not None:
+        from robogym_ray.protocol.tls import read_ca  # grpc: only when asked for
+
+        read_ca(cfg.tls_ca, words.label("tls_ca"))  # unreadable, or no certificate: one line
+    if cfg.emulated_workers and not preset.env_id.startswith("RoboGymRay/"):
+        raise ConfigError(
+            f"{words.given('emulated_workers', cfg.emulated_workers)} needs a robot task; "
+            f"{preset.env_id} has none"
+        )
     root = storage_root(cfg)
     if not is_uri(root):
         local = Path(root) / cfg.run_name if cfg.run_name else Path(root)
