@@ -8,10 +8,13 @@
 #                                             30-s navigation trainings with 2, 4, 8 and 14 workers
 #                                             x 4 envs and the GPU learner (batch 128 per worker),
 #                                             and 8 workers with the CPU learner beside.
-#   bash benchmarks/gpu_node.sh learning OUT [S]  the second call: one navigation training of the
-#                                             node recipe (experiments/configs/navigation-node.json)
-#                                             for S seconds (360), a policy snapshot a minute, the
-#                                             run packed as OUT/learning.tar.gz to be scored here
+#   bash benchmarks/gpu_node.sh learning OUT [S] [CONFIG]  the second call: one navigation
+#                                             training of the node recipe (CONFIG, by default
+#                                             experiments/configs/navigation-node.json; the
+#                                             variant navigation-node-spi128.json asks the learner
+#                                             for 4x the samples per insert) for S seconds (360),
+#                                             a policy snapshot a minute, the run packed as
+#                                             OUT/<config's name>.tar.gz to be scored here
 #                                             (experiments/peers.py evaluate) on the 2-core seeds'
 #                                             100 episodes.
 #   bash benchmarks/gpu_node.sh learner OUT   the learner alone on CUDA, batch 256 to 16,384:
@@ -149,21 +152,25 @@ throughput)
     echo "== training: stopped, exit ${PIPESTATUS[0]}" | tee -a "$out/errors.log"
   ;;
 learning)
-  # The node recipe for S seconds; its run folder (summary, snapshots, metrics) comes back packed.
+  # The node recipe for S seconds (the config's 1,000,000 steps lifted: the node passes them
+  # in 2-3 minutes); its run folder (summary, snapshots, metrics) comes back packed.
   wall=${3:-360}
+  config=${4:-$root/experiments/configs/navigation-node.json}
+  config=$(cd "$(dirname "$config")" && pwd)/$(basename "$config") # absolute: the run starts in /
+  name=$(basename "$config" .json)
   runs=/tmp/node-runs
-  rm -rf "$runs"
+  rm -rf "${runs:?}/$name-seed0"
   # A rehearsal on a small machine may run fewer of the recipe's workers (GPU_NODE_LEARN_WORKERS).
   extra=()
   [ -z "${GPU_NODE_LEARN_WORKERS:-}" ] || extra=(--workers "$GPU_NODE_LEARN_WORKERS")
-  echo "== learning, ${wall} s" | tee -a "$out/errors.log"
-  (cd / && timeout $((wall + 90)) "$py" -m robogym_ray.cli train \
-    --config "$root/experiments/configs/navigation-node.json" --max-wall-s "$wall" \
-    --total-steps 1000000000 --logdir "$runs" --run-name navigation-node-seed0 --seed 0 \
-    --no-progress --num-cpus "$cpus" "${extra[@]}") 2>&1 | tail -40 >>"$out/errors.log" ||
+  echo "== learning, $name, $wall s, load $(cut -d' ' -f1-3 /proc/loadavg)" |
+    tee -a "$out/errors.log"
+  (cd / && timeout $((wall + 90)) "$py" -m robogym_ray.cli train --config "$config" \
+    --max-wall-s "$wall" --total-steps 1000000000 --logdir "$runs" --run-name "$name-seed0" \
+    --seed 0 --no-progress --num-cpus "$cpus" "${extra[@]}") 2>&1 | tail -40 >>"$out/errors.log" ||
     echo "== learning: stopped" | tee -a "$out/errors.log"
-  cp "$runs/navigation-node-seed0/summary.json" "$out/summary.json" 2>/dev/null || true
-  tar -czf "$out/learning.tar.gz" -C "$runs" --exclude='*.replay.npz' navigation-node-seed0 ||
+  cp "$runs/$name-seed0/summary.json" "$out/$name.summary.json" 2>/dev/null || true
+  tar -czf "$out/$name.tar.gz" -C "$runs" --exclude='*.replay.npz' "$name-seed0" ||
     echo "== learning: nothing to pack" | tee -a "$out/errors.log"
   ls -l "$out"
   ;;
