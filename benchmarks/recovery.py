@@ -23,7 +23,7 @@ from typing import Any
 import ray
 
 from robogym_ray.distributed.local_ray import start_local_ray
-from robogym_ray.distributed.remote import start_supervisor
+from robogym_ray.distributed.robot_actors import start_supervisor
 from robogym_ray.errors import RobotServerError
 from robogym_ray.protocol.client import Deadlines, RobotServerClient
 from robogym_ray.supervision.restart_policy import RestartPolicy

@@ -18,7 +18,7 @@ import time
 import numpy as np
 import ray
 
-from robogym_ray.distributed import remote
+from robogym_ray.distributed import remote, robot_actors
 from robogym_ray.distributed.local_ray import start_local_ray
 from robogym_ray.distributed.provider import SupervisorServerProvider
 from robogym_ray.experience.rollout import box_dims, make_gym_env
@@ -43,7 +43,7 @@ def main() -> None:
     preset = resolve_task(args.task)
     d4pg = d4pg_for(preset)
     start_local_ray(2, log_to_driver=False)
-    supervisor = remote.start_supervisor(
+    supervisor = robot_actors.start_supervisor(
         SupervisorConfig(server_num_cpus=0.2), name="bench-supervisor"
     )
     provider = SupervisorServerProvider(name="bench-supervisor")

@@ -231,3 +231,19 @@ def test_a_sim_env_imports_neither_ray_nor_torch() -> None:
         [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True
     )
     assert done.stdout.strip().splitlines()[-1] == "[]"
+
+
+def test_the_robot_side_of_ray_imports_no_torch() -> None:
+    """A Ray actor's process imports the module its class is defined in: the supervisor's, each
+    robot server's and each real robot's must not pull in torch (a manager starts dozens of
+    robot servers), nor must the ``manager`` and ``resume-robot`` commands."""
+    code = (
+        "import sys\n"
+        "import robogym_ray.distributed.robot_actors, robogym_ray.distributed.manager\n"
+        "import robogym_ray.distributed.provider, robogym_ray.distributed.resume\n"
+        "print('torch' in sys.modules, 'ray' in sys.modules)\n"
+    )
+    done = children.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True
+    )
+    assert done.stdout.strip().splitlines()[-1] == "False True"

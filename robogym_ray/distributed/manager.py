@@ -108,7 +108,7 @@ def run(args: argparse.Namespace) -> int:
 
     from robogym_ray.distributed.local_ray import join_ray, start_local_ray
     from robogym_ray.distributed.names import NAMESPACE
-    from robogym_ray.distributed.remote import creation_error, start_supervisor
+    from robogym_ray.distributed.robot_actors import creation_error, start_supervisor
 
     if cfg.ray_address:
         join_ray(cfg.ray_address, namespace=NAMESPACE)

@@ -17,7 +17,7 @@ from typing import Any
 import ray
 
 from robogym_ray.distributed.names import SUPERVISOR_NAME
-from robogym_ray.distributed.remote import get_supervisor
+from robogym_ray.distributed.robot_actors import get_supervisor
 from robogym_ray.errors import RobotServerError
 from robogym_ray.robots.emulation import EmulationConfig
 from robogym_ray.supervision.server_host import ServerSpec

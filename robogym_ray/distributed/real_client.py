@@ -105,14 +105,16 @@ def real_robot_actor(
 ) -> Iterator[Any]:
     """A real-robot actor on ``address`` (on a new local Ray if none); yields a client factory.
     ``tls_ca``: the PEM of its server's TLS CA (None: a plain channel)."""
-    from robogym_ray.distributed import remote  # imports every actor class: only when used
+    from robogym_ray.distributed import robot_actors  # Ray actors: only when used
     from robogym_ray.realrobot.safety import safety_for
 
     started = not ray.is_initialized()
     if started:
         start_local_ray(1, namespace=NAMESPACE, log_to_driver=False)
     name = f"eval-real-{os.getpid()}-{time.monotonic_ns()}"
-    actor = remote.start_real_robot(name, address, safety_for(env_id), token=token, tls_ca=tls_ca)
+    actor = robot_actors.start_real_robot(
+        name, address, safety_for(env_id), token=token, tls_ca=tls_ca
+    )
     try:
         yield RealRobotClientFactory(name, namespace=NAMESPACE)
     finally:

@@ -24,7 +24,7 @@ def run(args: argparse.Namespace) -> int:
 
     from robogym_ray.config import check_ray_address
     from robogym_ray.distributed.local_ray import join_ray
-    from robogym_ray.distributed.remote import NAMESPACE, get_real_robot
+    from robogym_ray.distributed.robot_actors import NAMESPACE, get_real_robot
 
     if not args.name.strip():
         raise ConfigError("resume-robot NAME: empty; name the real robot (its actor's name)")

@@ -1,6 +1,6 @@
 """A simulated robot server owned by one object, plus the fault-injection hook tests use.
 
-``RobotServerHost`` is what a robot-server actor is (``distributed/remote.py`` wraps it with
+``RobotServerHost`` is what a robot-server actor is (``distributed/robot_actors.py`` wraps it with
 ``ray.remote``): it starts ``robogym_ray.robots.server.start_robot_server`` for a ``ServerSpec``
 and reports its address and process id. ``FaultInjection`` is a testing hook that makes the
 running server misbehave in the ways the supervisor must notice, without touching the server code.

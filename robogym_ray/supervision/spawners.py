@@ -1,6 +1,6 @@
 """How a supervisor starts and stops robot servers: the ``ServerSpawner`` protocol, and the
 spawner that keeps them in this process (tests and benchmarks without Ray; the Ray one is
-``distributed/remote.py``'s ``RaySpawner``)."""
+``distributed/robot_actors.py``'s ``RaySpawner``)."""
 
 from __future__ import annotations
 

@@ -35,7 +35,8 @@ import ray
 from ray.exceptions import RayError
 
 from robogym_ray.config import FLAGS, Words
-from robogym_ray.distributed import remote
+from robogym_ray.distributed import remote, robot_actors
+from robogym_ray.distributed.names import NAMESPACE
 from robogym_ray.distributed.real_client import RealRobotClientFactory
 from robogym_ray.distributed.storage_check import check_reachable
 from robogym_ray.envs.inprocess import InProcessServerProvider
@@ -110,7 +111,7 @@ class Program:
             max_restarts=3,
             max_task_retries=0,
             name=f"learner-{self.name}",
-            namespace=remote.NAMESPACE,
+            namespace=NAMESPACE,
         ).remote(
             d4pg, self.obs_dim, self.act_dim, seed=cfg.seed,
             storage=self.storage, checkpoint_every=cfg.checkpoint_every,
@@ -171,7 +172,7 @@ class Program:
         if cfg.spread_workers and not real_env:
             placement["scheduling_strategy"] = "SPREAD"
         return remote.RolloutActor.options(
-            name=name, namespace=remote.NAMESPACE, **placement
+            name=name, namespace=NAMESPACE, **placement
         ).remote(
             factory, self.d4pg, index=i, sigma=self._sigmas[i], seed=cfg.seed + i,
             random_steps=cfg.random_steps,
@@ -185,7 +186,7 @@ class Program:
         kwargs = self._env_kwargs(None) | evaluator_env_kwargs(cfg, env_id)
         name = f"evaluator-{self.name}" + (f"-{generation}" if generation else "")
         return remote.EvaluatorActor.options(
-            name=name, namespace=remote.NAMESPACE, **self._need("evaluator").options(),
+            name=name, namespace=NAMESPACE, **self._need("evaluator").options(),
         ).remote(
             make_gym_env(env_id, kwargs), self.d4pg,
             seed=cfg.seed + 10_000, video_every_s=cfg.video_interval_s,
@@ -312,7 +313,9 @@ def real_robot(cfg: TrainConfig, env_id: str, run_name: str, k: int) -> tuple[An
     rob_id = variant_id(env_id, "rob")
     token = cfg.token or os.environ.get("ROBOGYM_RAY_TOKEN") or None
     tls_ca = read_ca(cfg.tls_ca)  # bytes: the actor may run on a node without the file
-    actor = remote.start_real_robot(name, address, safety_for(rob_id), token=token, tls_ca=tls_ca)
+    actor = robot_actors.start_real_robot(
+        name, address, safety_for(rob_id), token=token, tls_ca=tls_ca
+    )
     kwargs = {"rs_address": address, "client_factory": RealRobotClientFactory(name)}
     return actor, make_gym_env(rob_id, kwargs)
 

@@ -10,7 +10,7 @@ from typing import Any
 
 import ray
 
-from robogym_ray.distributed import remote
+from robogym_ray.distributed import robot_actors
 from robogym_ray.distributed.provider import SupervisorServerProvider
 from robogym_ray.robots.emulation import EmulationConfig
 from robogym_ray.supervision.restart_policy import FaultCause
@@ -91,10 +91,10 @@ def start_supervision(cfg: TrainConfig, env_id: str, run_name: str) -> Supervisi
         return None
     server = actor_need(cfg, "robot server")  # the table's row: the CPU check counted it
     resources = tuple(server.options().get("resources", {}).items())
-    running = remote.get_supervisor()
+    running = robot_actors.get_supervisor()
     if running is not None:
-        log.warning("using the running supervisor %s", remote.SUPERVISOR_NAME)
-        return Supervision(running, remote.SUPERVISOR_NAME, owned=False, resources=resources)
-    name = f"{remote.SUPERVISOR_NAME}-{run_name}"
-    actor = remote.start_supervisor(SupervisorConfig(server_num_cpus=server.cpus), name=name)
+        log.warning("using the running supervisor %s", robot_actors.SUPERVISOR_NAME)
+        return Supervision(running, robot_actors.SUPERVISOR_NAME, owned=False, resources=resources)
+    name = f"{robot_actors.SUPERVISOR_NAME}-{run_name}"
+    actor = robot_actors.start_supervisor(SupervisorConfig(server_num_cpus=server.cpus), name=name)
     return Supervision(actor, name, owned=True, resources=resources)

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 import ray
 
-from robogym_ray.distributed import remote
+from robogym_ray.distributed import names
 from robogym_ray.training.config import TrainConfig
 from robogym_ray.training.run import run_training
 
@@ -45,7 +45,7 @@ def test_a_killed_evaluator_is_replaced_and_goes_on(
 
     def status(name: str) -> dict[str, int] | None:
         try:
-            actor = ray.get_actor(name, namespace=remote.NAMESPACE)
+            actor = ray.get_actor(name, namespace=names.NAMESPACE)
             return ray.get(actor.status.remote(), timeout=30)  # waits for a running episode
         except Exception:  # noqa: BLE001 - not started yet, or already gone
             return None

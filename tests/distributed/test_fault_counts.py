@@ -15,7 +15,7 @@ from typing import Any
 import pytest
 import ray
 
-from robogym_ray.distributed import remote
+from robogym_ray.distributed import names
 from robogym_ray.training.config import TrainConfig
 from robogym_ray.training.run import run_training
 
@@ -43,11 +43,11 @@ def test_a_paused_robot_server_replaced_once_is_one_restart(
     done, paused, went_on = threading.Event(), [], []
 
     def servers() -> list[dict]:
-        sup = ray.get_actor(f"{remote.SUPERVISOR_NAME}-{run}", namespace=remote.NAMESPACE)
+        sup = ray.get_actor(f"{names.SUPERVISOR_NAME}-{run}", namespace=names.NAMESPACE)
         return [s for s in ray.get(sup.status.remote(), timeout=10) if s["holder"] == "worker-0"]
 
     def worker_steps() -> int:
-        worker = ray.get_actor(f"rollout-{run}-0", namespace=remote.NAMESPACE)
+        worker = ray.get_actor(f"rollout-{run}-0", namespace=names.NAMESPACE)
         return int(ray.get(worker.ping.remote(), timeout=30))
 
     def watch(check: Callable[[], Any]) -> Any:

@@ -73,7 +73,7 @@ def scan_for_manager(ip: str, lower: int, upper: int) -> sm_grpc.ServerManagerSt
 
 @pytest.fixture(scope="module")
 def manager(ray_cluster: None) -> Any:
-    from robogym_ray.distributed.remote import start_supervisor
+    from robogym_ray.distributed.robot_actors import start_supervisor
     from robogym_ray.supervision.supervisor import SupervisorConfig
 
     lower = free_port()

@@ -121,7 +121,7 @@ def test_an_idle_robot_is_probed_and_pauses_when_its_server_dies() -> None:
 def test_paused_robot_stays_paused_until_resumed_and_is_never_restarted(
     hardware: tuple[subprocess.Popen[str], str],
 ) -> None:
-    from robogym_ray.distributed.remote import start_supervisor
+    from robogym_ray.distributed.robot_actors import start_supervisor
     from robogym_ray.supervision.supervisor import SupervisorConfig
 
     proc, address = hardware
@@ -158,7 +158,7 @@ def test_paused_robot_stays_paused_until_resumed_and_is_never_restarted(
 def test_server_error_pauses_and_operator_resumes_from_the_cli(
     hardware: tuple[subprocess.Popen[str], str],
 ) -> None:
-    from robogym_ray.distributed.remote import start_real_robot
+    from robogym_ray.distributed.robot_actors import start_real_robot
 
     proc, address = hardware
     robot = start_real_robot("mir-cli", address, safety_for_robot("mir100"))

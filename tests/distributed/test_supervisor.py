@@ -34,7 +34,7 @@ CONFIG = SupervisorConfig(
 
 @pytest.fixture(scope="module")
 def supervisor(ray_cluster: None) -> Any:
-    from robogym_ray.distributed.remote import start_supervisor
+    from robogym_ray.distributed.robot_actors import start_supervisor
 
     actor = start_supervisor(CONFIG, name="test-supervisor")
     yield actor
@@ -149,7 +149,7 @@ def test_provider_report_fault_restarts_and_next_acquire_gets_new_server(
 
 
 def test_server_failing_every_restart_is_given_up(ray_cluster: None) -> None:
-    from robogym_ray.distributed.remote import start_supervisor
+    from robogym_ray.distributed.robot_actors import start_supervisor
 
     config = SupervisorConfig(
         probe_interval_s=0.3,

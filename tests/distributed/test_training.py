@@ -19,7 +19,7 @@ import pytest
 import ray
 
 from robogym_ray import children
-from robogym_ray.distributed import remote
+from robogym_ray.distributed import names, robot_actors
 from robogym_ray.errors import ConfigError
 from robogym_ray.robots.emulation import EmulationConfig
 from robogym_ray.robots.serve import serve_process
@@ -145,10 +145,10 @@ def test_killing_a_robot_server_a_worker_and_the_learner_mid_run(tmp_path: Path)
     snapshot: dict[str, float] = {"mtime": 0.0, "transitions": 0}
 
     def supervisor() -> Any:
-        return ray.get_actor(f"{remote.SUPERVISOR_NAME}-{run}", namespace=remote.NAMESPACE)
+        return ray.get_actor(f"{names.SUPERVISOR_NAME}-{run}", namespace=names.NAMESPACE)
 
     def learner() -> Any:
-        return ray.get_actor(f"learner-{run}", namespace=remote.NAMESPACE)
+        return ray.get_actor(f"learner-{run}", namespace=names.NAMESPACE)
 
     def servers_up() -> bool:
         servers = ray.get(supervisor().status.remote())
@@ -172,7 +172,7 @@ def test_killing_a_robot_server_a_worker_and_the_learner_mid_run(tmp_path: Path)
         return int(ray.get(learner().status.remote())["pid"])
 
     def worker_pid() -> int:
-        worker = ray.get_actor(f"rollout-{run}-1", namespace=remote.NAMESPACE)
+        worker = ray.get_actor(f"rollout-{run}-1", namespace=names.NAMESPACE)
         return int(ray.get(worker.pid.remote()))
 
     injectors = [
@@ -266,7 +266,7 @@ def test_a_paused_real_robot_does_not_keep_a_run_from_ending(tmp_path: Path) -> 
     )  # fmt: skip
 
     def robot_has_driven() -> bool:  # its worker's steps, counted after each of its calls
-        worker = ray.get_actor("rollout-paused-1", namespace=remote.NAMESPACE)
+        worker = ray.get_actor("rollout-paused-1", namespace=names.NAMESPACE)
         return int(ray.get(worker.ping.remote(), timeout=30)) > 0
 
     done = threading.Event()
@@ -320,7 +320,7 @@ def test_a_learner_restarted_with_nothing_to_restore_ends_the_run(tmp_path: Path
     done, log = threading.Event(), []
 
     def learner() -> Any:
-        return ray.get_actor(f"learner-{run}", namespace=remote.NAMESPACE)
+        return ray.get_actor(f"learner-{run}", namespace=names.NAMESPACE)
 
     def trained() -> bool:
         return int(ray.get(learner().status.remote())["version"]) >= 50
@@ -410,7 +410,7 @@ def test_emulated_workers_train_on_emulated_robots_and_the_evaluator_does_not(
 
     def watch() -> None:
         while not done.is_set():
-            sup = remote.get_supervisor(f"{remote.SUPERVISOR_NAME}-{run}")
+            sup = robot_actors.get_supervisor(f"{names.SUPERVISOR_NAME}-{run}")
             if sup is not None:
                 try:
                     servers = [s for s in ray.get(sup.status.remote()) if s["leased"]]
