@@ -1,10 +1,10 @@
 """The supervisor's logic: own robot servers, probe them, restart them on faults, give them up.
 
 Plain Python (threads, no Ray): how a server is started and killed is a ``ServerSpawner``
-(``InProcessSpawner`` here for tests without Ray; the Ray edge in ``distributed/robot_actors.py`` spawns
-robot-server actors). Faults come from the periodic health probe or from clients
-(``report_fault``); each server's ``RestartBook`` counts them per cause and decides on backoff
-and giving up.
+(``InProcessSpawner`` here for tests without Ray; the Ray edge in
+``distributed/robot_actors.py`` spawns robot-server actors). Faults come from the periodic
+health probe or from clients (``report_fault``); each server's ``RestartBook`` counts them per
+cause and decides on backoff and giving up.
 """
 
 from __future__ import annotations
