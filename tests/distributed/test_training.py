@@ -154,6 +154,12 @@ def test_killing_a_robot_server_a_worker_and_the_learner_mid_run(tmp_path: Path)
         servers = ray.get(supervisor().status.remote())
         return len([s for s in servers if s["pid"] and s["holder"].startswith("worker-")]) >= 2
 
+    def worker_0_stepping() -> bool:
+        # Mid-episode, not before worker 0's first reset: a server killed before the worker
+        # ever used it fails a reset, which ends no episode (no server_restarted status).
+        worker = ray.get_actor(f"rollout-{run}-0", namespace=names.NAMESPACE)
+        return servers_up() and int(ray.get(worker.ping.remote(), timeout=30)) >= 100
+
     def server_pid() -> int:  # worker 0's: worker 1 is killed too, and could not report its end
         servers = ray.get(supervisor().status.remote())
         return next(s["pid"] for s in servers if s["pid"] and s["holder"] == "worker-0")
@@ -176,7 +182,7 @@ def test_killing_a_robot_server_a_worker_and_the_learner_mid_run(tmp_path: Path)
         return int(ray.get(worker.pid.remote()))
 
     injectors = [
-        threading.Thread(target=_kill_when, args=(servers_up, server_pid, done, log)),
+        threading.Thread(target=_kill_when, args=(worker_0_stepping, server_pid, done, log)),
         threading.Thread(target=_kill_when, args=(learner_past_a_snapshot, learner_pid, done, log)),
         threading.Thread(target=_kill_when, args=(servers_up, worker_pid, done, log)),
     ]
