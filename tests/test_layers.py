@@ -220,17 +220,22 @@ def test_a_robot_folder_is_imported_only_by_itself_and_its_own_tasks() -> None:
     assert offenders == []
 
 
+def loaded_after(code: str, modules: tuple[str, ...]) -> list[str]:
+    """Which of ``modules`` a fresh interpreter has imported after running ``code``."""
+    probe = code + f"import sys; print(sorted(m for m in {modules!r} if m in sys.modules))\n"
+    done = children.run(
+        [sys.executable, "-c", probe], capture_output=True, text=True, timeout=120, check=True
+    )
+    return ast.literal_eval(done.stdout.strip().splitlines()[-1])
+
+
 def test_a_sim_env_imports_neither_ray_nor_torch() -> None:
     code = (
-        "import sys, gymnasium as gym, robogym_ray.envs\n"
+        "import gymnasium as gym, robogym_ray.envs\n"
         "env = gym.make('RoboGymRay/ObstacleAvoidanceMir100Sim-v0')\n"
         "env.reset(seed=0); env.step(env.action_space.sample()); env.close()\n"
-        "print(sorted(m for m in ('ray', 'torch') if m in sys.modules))\n"
     )
-    done = children.run(
-        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True
-    )
-    assert done.stdout.strip().splitlines()[-1] == "[]"
+    assert loaded_after(code, ("ray", "torch")) == []
 
 
 def test_the_robot_side_of_ray_imports_no_torch() -> None:
@@ -238,12 +243,7 @@ def test_the_robot_side_of_ray_imports_no_torch() -> None:
     robot server's and each real robot's must not pull in torch (a manager starts dozens of
     robot servers), nor must the ``manager`` and ``resume-robot`` commands."""
     code = (
-        "import sys\n"
         "import robogym_ray.distributed.robot_actors, robogym_ray.distributed.manager\n"
         "import robogym_ray.distributed.provider, robogym_ray.distributed.resume\n"
-        "print('torch' in sys.modules, 'ray' in sys.modules)\n"
     )
-    done = children.run(
-        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True
-    )
-    assert done.stdout.strip().splitlines()[-1] == "False True"
+    assert loaded_after(code, ("ray", "torch")) == ["ray"]
