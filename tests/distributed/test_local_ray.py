@@ -1,18 +1,22 @@
 """The embedded Ray listens on loopback only.
 
 Each case starts its own Ray in a child process (the suite's shared Ray is already up in this
-one), runs one actor so that a core worker listens too, and lists every listening TCP socket of
-that child's descendants from /proc. The plain ``ray.init`` case is the defect as Ray 2.60 ships
-it: it shows that the scan sees Ray's ``*:port`` listeners at all.
+one; the two children run side by side), runs one actor so that a core worker listens too, and
+lists every listening TCP socket of that child's descendants from /proc. The plain ``ray.init``
+case is the defect as Ray 2.60 ships it: it shows that the scan sees Ray's ``*:port`` listeners
+at all.
 """
 
 from __future__ import annotations
 
+import contextlib
 import ipaddress
 import json
 import os
+import subprocess
 import sys
 import tempfile
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -104,24 +108,40 @@ ray.shutdown()
 """
 
 
-def _listeners_of(mode: str) -> dict:
+@pytest.fixture(scope="module")
+def listeners() -> Iterator[dict[str, dict]]:
+    """{mode: what its child saw} for both modes, the two children run side by side (most of a
+    Ray's start is waiting on its own processes, so two overlap well on 2 cores)."""
     env = {**os.environ, "RAY_ADDRESS": ""}
     env.pop("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", None)
-    # A short path under /tmp (Ray's socket paths), removed with the session's files after.
-    with tempfile.TemporaryDirectory(prefix="rgl", dir="/tmp") as temp_dir:
-        done = children.run(
-            [sys.executable, "-c", _CHILD, mode, temp_dir],
-            capture_output=True,
-            text=True,
-            timeout=180,
-            env=env,
-        )
-    assert done.returncode == 0, done.stderr[-3000:]
-    return json.loads(done.stdout.strip().splitlines()[-1])
+    # Short paths under /tmp (Ray's socket paths), removed with the sessions' files after.
+    with contextlib.ExitStack() as stack:
+        procs = {}
+        for mode in ("ours", "plain"):
+            temp_dir = stack.enter_context(tempfile.TemporaryDirectory(prefix="rgl", dir="/tmp"))
+            procs[mode] = children.popen(
+                [sys.executable, "-c", _CHILD, mode, temp_dir],
+                stdout=subprocess.PIPE,
+                stderr=subprocess.PIPE,
+                text=True,
+                env=env,
+            )
+        seen = {}
+        try:
+            for mode, proc in procs.items():
+                stdout, stderr = proc.communicate(timeout=180)
+                assert proc.returncode == 0, f"{mode}: {stderr[-3000:]}"
+                seen[mode] = json.loads(stdout.strip().splitlines()[-1])
+        finally:
+            for proc in procs.values():
+                if proc.poll() is None:
+                    proc.kill()
+                    proc.wait()
+    yield seen
 
 
-def test_the_embedded_ray_listens_on_loopback_only() -> None:
-    seen = _listeners_of("ours")
+def test_the_embedded_ray_listens_on_loopback_only(listeners: dict[str, dict]) -> None:
+    seen = listeners["ours"]
     assert seen["node"] == "127.0.0.1"
     assert seen["worker_in_tree"], "the actor's worker was not found among Ray's processes"
     # GCS, raylet (node manager + object manager), the core workers, the agents.
@@ -130,10 +150,10 @@ def test_the_embedded_ray_listens_on_loopback_only() -> None:
     assert exposed == [], f"listening beyond loopback: {exposed}"
 
 
-def test_plain_ray_init_listens_on_every_interface() -> None:
+def test_plain_ray_init_listens_on_every_interface(listeners: dict[str, dict]) -> None:
     # Documents why start_local_ray exists; if a later Ray binds loopback on its own, this is
     # the test to drop (and start_local_ray's switch may be dropped with it).
-    seen = _listeners_of("plain")
+    seen = listeners["plain"]
     exposed = [ip for ip, _ in seen["listeners"] if not _is_loopback(ip)]
     assert exposed, seen
 

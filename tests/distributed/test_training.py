@@ -68,7 +68,9 @@ def eval_video(run_dir: str) -> Any:
     return acc.Images("eval/video")[0]
 
 
-def test_navigation_run_completes_with_tensorboard_scalars(tmp_path: Path) -> None:
+def test_navigation_run_completes_with_tensorboard_scalars(
+    tmp_path: Path, selecting_run: dict
+) -> None:
     cfg = TrainConfig(
         task=NAV,
         workers=2,
@@ -79,8 +81,13 @@ def test_navigation_run_completes_with_tensorboard_scalars(tmp_path: Path) -> No
         log_every_s=1.0,
         revisit_failed=1.0,  # the untrained policy fails: the next start of a worker revisits
         policy_snapshot_every_s=2.0,
+        eval_interval_s=1e6,  # one evaluator call: the first, filmed (checked below)
     )
     summary = run_training(cfg)
+    # --eval-interval-s spaces the evaluator's calls: the first call, then none for 10^6 s,
+    # where the default (0: back to back) makes several in a run of Pendulum's length.
+    assert len(summary["eval_history"]) == 1
+    assert len(selecting_run["eval_history"]) > 1
     # Timed policy snapshots at 2 s marks (the one the run ended on too), where evaluate and
     # peers.py evaluate read them; each taken after its mark, never a mark later.
     kept = summary["policy_snapshots"]
@@ -309,11 +316,6 @@ def pendulum(tmp_path: Path, run_name: str, total_steps: int, **more: Any) -> Tr
                        run_name=run_name, progress=False, random_steps=200, **more)  # fmt: skip
 
 
-def test_pendulum_runs_without_a_supervisor(tmp_path: Path) -> None:
-    summary = run_training(pendulum(tmp_path, "pend", 600))
-    assert summary["env_steps"] >= 600 and not any(summary["restarts"].values())
-
-
 def test_a_learner_restarted_with_nothing_to_restore_ends_the_run(tmp_path: Path) -> None:
     """No checkpoint (--checkpoint-every 0): the learner Ray restarts after a kill finds
     nothing, so the run stops in one line saying what was lost, rather than train on from
@@ -447,7 +449,7 @@ def test_emulated_workers_train_on_emulated_robots_and_the_evaluator_does_not(
 @pytest.fixture(scope="module")
 def selecting_run(tmp_path_factory: pytest.TempPathFactory, ray_cluster: None) -> dict:
     """A Pendulum run that scores its snapshots (evaluator calls back to back, the default):
-    its summary, shared by the two tests that read it."""
+    its summary, shared by the tests that read it."""
     root = tmp_path_factory.mktemp("selecting")
     return run_training(
         pendulum(root, "sel", 1500, select_episodes=1),
@@ -470,11 +472,9 @@ def test_snapshot_selection_keeps_a_best_policy_that_evaluate_reads(selecting_ru
     assert policy(np.zeros(3)).shape == (1,)
 
 
-def test_eval_interval_spaces_the_evaluator_calls(tmp_path: Path, selecting_run: dict) -> None:
-    spaced = run_training(pendulum(tmp_path, "spaced", 1500, eval_interval_s=1e6))
-    back_to_back = selecting_run  # the same length, at the default interval (0: back to back)
-    assert len(spaced["eval_history"]) == 1  # the first call, then none for 10^6 s
-    assert len(back_to_back["eval_history"]) > 1
+def test_pendulum_runs_without_a_supervisor(selecting_run: dict) -> None:
+    summary = selecting_run  # a task without robot servers: nothing to supervise or restart
+    assert summary["env_steps"] >= 1500 and not any(summary["restarts"].values())
 
 
 def test_in_process_workers_get_emulated_robots_and_the_evaluator_does_not() -> None:
