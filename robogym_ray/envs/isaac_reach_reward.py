@@ -24,8 +24,11 @@ joint-velocity weight to -0.001 after 4,500 steps of the vectorised env (iterati
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from robogym_ray.envs.base import StepInfo
 from robogym_ray.envs.frames import frame_rotation, frame_xyz
@@ -37,15 +40,27 @@ ACTION_RATE_WEIGHT, JOINT_VEL_WEIGHT = -1e-4, -1e-4
 """``Isaac-Reach-UR10-v0``'s reward weights (per second: the env multiplies them by its dt)."""
 
 
+def tracking_per_second(position: Any, rotation: Any) -> Any:
+    """The reward's command terms before the dt, of position and rotation errors (m, rad):
+    floats, or arrays of them (hindsight relabelling scores many commands at once)."""
+    tanh = TANH_WEIGHT * (1.0 - np.tanh(np.asarray(position, np.float64) / TANH_STD))
+    return POSITION_WEIGHT * position + tanh + ROTATION_WEIGHT * rotation
+
+
+def effort_per_second(action_change: np.ndarray, joint_velocity: np.ndarray) -> float:
+    """The reward's terms that no command changes, before the dt: the change of the raw action
+    from the step before and the joint velocities (rad/s)."""
+    effort = ACTION_RATE_WEIGHT * float(np.sum(np.square(action_change)))
+    return effort + JOINT_VEL_WEIGHT * float(np.sum(np.square(joint_velocity)))
+
+
 def reward_per_second(
     position: float, rotation: float, action_change: np.ndarray, joint_velocity: np.ndarray
 ) -> float:
     """Isaac Lab's reach reward before the dt: position and rotation errors (m, rad) to the
     command, the change of the raw action from the step before, the joint velocities (rad/s)."""
-    tracking = POSITION_WEIGHT * position + TANH_WEIGHT * (1.0 - math.tanh(position / TANH_STD))
-    effort = ACTION_RATE_WEIGHT * float(np.sum(np.square(action_change)))
-    effort += JOINT_VEL_WEIGHT * float(np.sum(np.square(joint_velocity)))
-    return tracking + ROTATION_WEIGHT * rotation + effort
+    tracking = float(tracking_per_second(position, rotation))
+    return tracking + effort_per_second(action_change, joint_velocity)
 
 
 def step_reward_range(
@@ -68,10 +83,37 @@ def step_reward_range(
 
 
 class IsaacLabReachMDP(PoseCommands):
-    """Isaac Lab's reach reward and ends on an ``IsaacReachTask`` (see the module docstring)."""
+    """Isaac Lab's reach reward and ends on an ``IsaacReachTask`` (see the module docstring).
+
+    It is a goal task for hindsight relabelling (``experience/relabel.py``): ``info`` carries
+    the pose reached (``achieved_goal``, in the observation's command layout: xyz, quaternion
+    w-x-y-z) and the reward's command-free part (``effort``); ``compute_reward`` scores any
+    command the way ``_evaluate`` scores the one in force.
+    """
 
     max_episode_steps = 360  # 12 s at 30 Hz: Isaac Lab's dt of 1/60 s x decimation 2
     # A new command every 4 s: PoseCommands' resampling_time default, Isaac Lab's.
+    reward_info_keys = ("effort",)
+    ends_on_goal = False
+
+    @property
+    def goal_slice(self) -> slice:
+        """The command's place in the observation (after positions and velocities)."""
+        start = 2 * (self.lower.size + len(self.extra))
+        return slice(start, start + 7)
+
+    def compute_reward(
+        self, achieved_goal: np.ndarray, desired_goal: np.ndarray, info: Mapping[str, Any]
+    ) -> np.ndarray:
+        """The step rewards for poses reached and commands (rows of xyz + quaternion w-x-y-z)
+        with ``info["effort"]``, per step (the dt applied)."""
+        achieved = np.atleast_2d(np.asarray(achieved_goal, np.float64))
+        desired = np.atleast_2d(np.asarray(desired_goal, np.float64))
+        position = np.linalg.norm(achieved[:, :3] - desired[:, :3], axis=1)
+        xyzw = [4, 5, 6, 3]  # scipy's order
+        turn = Rotation.from_quat(achieved[:, xyzw]) * Rotation.from_quat(desired[:, xyzw]).inv()
+        per_second = tracking_per_second(position, turn.magnitude()) + np.asarray(info["effort"])
+        return per_second / self.action_rate
 
     def _evaluate(
         self, msg: pb.State, obs: np.ndarray, action: np.ndarray
@@ -81,15 +123,19 @@ class IsaacLabReachMDP(PoseCommands):
         the table stops the arm, here the kinematic arm passes through it): ``in_collision``
         says it happened (latched until the next reset)."""
         sd = msg.state_dict
-        position, rotation = pose_error(frame_xyz(sd, "ee"), frame_rotation(sd, "ee"),
-                                        self.scored_pose)  # fmt: skip
+        xyz, turn = frame_xyz(sd, "ee"), frame_rotation(sd, "ee")
+        position, rotation = pose_error(xyz, turn, self.scored_pose)
         change = np.asarray(action, dtype=np.float64) - self.prev_action
-        reward = reward_per_second(position, rotation, change, self.velocities(msg))
+        effort = effort_per_second(change, self.velocities(msg))
+        reward = float(tracking_per_second(position, rotation)) + effort
+        x, y, z, w = turn.as_quat(canonical=self.pose_cfg.ee_rotation_quat_unique)
         info: StepInfo = {
             **self._info(msg),
             "dist_coord": position,
             "dist_rot": rotation,
             "in_collision": self.collided(msg),
+            "achieved_goal": np.array([*xyz, w, x, y, z]),
+            "effort": effort,
             **self.window_errors(position, rotation),
         }
         return reward / self.action_rate, None, info

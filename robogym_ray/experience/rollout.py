@@ -21,6 +21,7 @@ import numpy as np
 
 from robogym_ray.envs.outcomes import ROBOT_ERROR, SERVER_RESTARTED
 from robogym_ray.errors import ConfigError, RobotServerError
+from robogym_ray.experience.relabel import HindsightRelabeller, goal_task
 from robogym_ray.experience.revisits import FailedStartRevisits
 from robogym_ray.learner.behaviour import BehaviourPolicy, to_env_action
 from robogym_ray.learner.config import D4PGConfig
@@ -48,7 +49,7 @@ class RolloutResult:
     """What one ``collect`` call sends back to the driver."""
 
     batch: dict[str, np.ndarray] | None
-    """Stacked n-step transitions (None when none completed)."""
+    """Stacked n-step transitions (None when none completed), relabelled ones included."""
     episodes: list[Episode] = field(default_factory=list)
     steps: int = 0
     dropped: int = 0
@@ -64,6 +65,8 @@ class RolloutResult:
     """Server faults that ended episodes, by the client's cause (``deadline``, ``rejected`` ...)."""
     transitions: int = 0
     """n-step transitions completed (in ``batch``, or already sent to the learner)."""
+    relabelled: int = 0
+    """Of ``transitions``, those written by hindsight relabelling (``relabel.py``)."""
     learner_call: Any = None
     """The learner's answer to this batch when the worker sent it itself (a Ray reference)."""
 
@@ -97,6 +100,8 @@ class EnvSlot:
     """A start chosen but not reset into yet: the robot was not ready when the worker began."""
     ret: float = 0.0
     length: int = 0
+    relabeller: HindsightRelabeller | None = None
+    """The running episode's steps, relabelled when it ends (``relabel_goals``)."""
 
 
 class RolloutWorker:
@@ -119,6 +124,7 @@ class RolloutWorker:
         revisits: FailedStartRevisits | None = None,
         num_envs: int = 1,
         real_robot: bool = False,
+        relabel_goals: int = 0,
     ) -> None:
         """Args:
         make_env: builds one of this worker's envs (Sim via a server provider, or Real).
@@ -133,6 +139,9 @@ class RolloutWorker:
             (paused, its server down) is retried by ``collect`` as at any later reset, rather
             than failing the worker: a real robot's worker is never replaced. A simulated
             worker's first reset raises, so that a new worker and server take its place.
+        relabel_goals: relabelled copies of each step under commands the episode reached
+            later (hindsight relabelling, ``relabel.py``; the task must be a goal task);
+            0 = off.
         """
         if num_envs < 1:
             raise ConfigError(f"worker {index}: num_envs={num_envs}; expected >= 1")
@@ -158,6 +167,11 @@ class RolloutWorker:
         self.total_steps = 0
         self.retry_wait_s = 1.0
         self.revisits = revisits
+        for k, slot in enumerate(self.slots if relabel_goals else ()):
+            slot.relabeller = HindsightRelabeller(
+                goal_task(slot.env), relabel_goals, d4pg.n_step, d4pg.discount,
+                np.random.default_rng([seed, k, 4057]),
+            )  # fmt: skip
         for k, slot in enumerate(self.slots):
             slot.start = revisits.next_start() if revisits else (seed + k * ENV_SEED_STRIDE, False)
             try:
@@ -228,10 +242,18 @@ class RolloutWorker:
             result.dropped += slot.nstep.drop() + 1
             fault = str(info.get("fault", "other"))
             result.faults[fault] = result.faults.get(fault, 0) + 1
+            if slot.relabeller is not None:
+                slot.relabeller.drop()  # no relabelled window spans the crash either
         else:
             out += slot.nstep.push(
                 slot.obs, action, float(reward), next_obs, bool(terminated), bool(truncated)
             )
+            if slot.relabeller is not None:
+                slot.relabeller.record(slot.obs, action, next_obs, info)
+                if terminated or truncated:
+                    relabelled = slot.relabeller.finish(bool(terminated))
+                    result.relabelled += len(relabelled)
+                    out += relabelled
         slot.obs = next_obs
         if terminated or truncated or status == SERVER_RESTARTED:
             ended = status or ("truncated" if truncated else "terminated")
@@ -246,6 +268,8 @@ class RolloutWorker:
         log.warning("worker %d: robot error, episode abandoned: %s", self.index, exc)
         result.robot_errors += 1
         result.dropped += slot.nstep.drop()
+        if slot.relabeller is not None:
+            slot.relabeller.drop()
         result.episodes.append(
             Episode(slot.ret, slot.length, ROBOT_ERROR, self.index, slot.start[1])
         )
@@ -271,6 +295,8 @@ class RolloutWorker:
         takes that reset as its checked first one, then fails the first step (gymnasium 1.4)."""
         slot.env.close()
         slot.env = self.make_env()
+        if slot.relabeller is not None:
+            slot.relabeller.task = goal_task(slot.env)
 
     def ping(self) -> int:
         return self.total_steps

@@ -105,6 +105,9 @@ class TrainConfig:
     """Failed starts each worker keeps for revisits (the oldest is forgotten first)."""
     revisit_max: int = 2
     """Times one failed start is re-run at most (a revisit that succeeds retires it at once)."""
+    relabel_goals: int = 0
+    """Copies of each step under commands its episode reached later (HER); 0 = off. Goal
+    tasks only; samples_per_insert counts the copies (experience/relabel.py)."""
     checkpoint_every: int = 500
     """Learner steps between checkpoints (a restarted learner resumes from the latest)."""
     init_from: str | None = None
@@ -224,6 +227,7 @@ class TrainConfig:
             (0.0 <= self.revisit_failed <= 1.0, "revisit_failed", "in [0, 1]"),
             (self.revisit_pool >= 1, "revisit_pool", ">= 1"),
             (self.revisit_max >= 1, "revisit_max", ">= 1"),
+            (self.relabel_goals >= 0, "relabel_goals", ">= 0"),
             (self.worker_cpus > 0, "worker_cpus", "> 0"),
             (self.learner_cpus > 0, "learner_cpus", "> 0"),
             (self.server_cpus > 0, "server_cpus", "> 0"),

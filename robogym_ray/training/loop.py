@@ -172,6 +172,7 @@ class TrainingLoop:
                 logger.scalar("episode/length", ep.length, self.stats.env_steps)
             logger.advance(result.steps)
             self.stats.transitions_sent += result.transitions
+            self.stats.relabelled_transitions += result.relabelled
             if result.learner_call is not None:  # the worker sent its batch to the learner
                 learner_calls.append(result.learner_call)
             elif result.batch is not None:

@@ -179,6 +179,7 @@ class Program:
             revisits=revisits_for(cfg, i) if real_env is None else None,
             num_envs=1 if real_env else cfg.envs_per_worker, learner=self.learner,
             real_robot=real_env is not None,
+            relabel_goals=0 if real_env else cfg.relabel_goals,
         )  # fmt: skip
 
     def _evaluator_actor(self, generation: int = 0, first_episode: int = 0) -> Any:

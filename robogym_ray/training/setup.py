@@ -17,6 +17,7 @@ import ray
 from robogym_ray.config import FLAGS, Words, check_dir_path, quote
 from robogym_ray.distributed.local_ray import join_ray, start_local_ray
 from robogym_ray.errors import ConfigError
+from robogym_ray.experience.relabel import goal_task
 from robogym_ray.experience.rollout import box_dims, make_gym_env
 from robogym_ray.learner import checkpoint
 from robogym_ray.learner.checkpoint import RUN_CHECKPOINT, replay_path
@@ -139,6 +140,12 @@ def check_inputs(
     probe = make_gym_env(preset.env_id)()  # dimensions only: it never resets, so no server
     try:
         obs_dim, act_dim = box_dims(probe)
+        if cfg.relabel_goals:
+            try:
+                goal_task(probe, preset.env_id)
+            except ConfigError as exc:
+                given = words.given("relabel_goals", cfg.relabel_goals)
+                raise ConfigError(f"{given}: {exc}") from None
     finally:
         probe.close()
     if init_from:

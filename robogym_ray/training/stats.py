@@ -62,6 +62,8 @@ class RunStats:
     with a dead learner's weights is not one."""
     transitions_sent: int = 0
     """Transitions the workers sent to the learner (its replay should have them all)."""
+    relabelled_transitions: int = 0
+    """Of those, the ones hindsight relabelling wrote (``TrainConfig.relabel_goals``)."""
     abandoned_real_calls: int = 0
     """Real-robot calls still running when the run ended (a paused robot), not collected."""
     robot_errors: int = 0
@@ -222,6 +224,7 @@ def summary(stats: RunStats, final: Mapping[str, float], **facts: Any) -> dict[s
         "learner_restarts": stats.learner_restarts,
         "final_status_counts": dict(Counter(stats.statuses)),
         "revisited_episodes": stats.revisits,
+        "relabelled_transitions": stats.relabelled_transitions,
         **{k: round(v, 4) for k, v in final.items()},
     }
 

@@ -1,6 +1,7 @@
 """The isaac-reach-ur10-isaac-reward experiment end to end, CI-sized: a training from its config
-file (preset, support and recipe; small networks, a short replay warm-up), then ``evaluate`` on
-robo-gym 2.1.0's IsaacReachUR10Sim-v0, the env its policies are scored on."""
+file (preset, support and recipe; small networks, a short replay warm-up) with hindsight
+relabelling on, then ``evaluate`` on robo-gym 2.1.0's IsaacReachUR10Sim-v0, the env its
+policies are scored on."""
 
 from __future__ import annotations
 
@@ -26,13 +27,17 @@ def test_a_short_training_runs_and_evaluate_scores_it_on_isaac_reach_ur10(
     # Small networks, few learner steps: the path is under test, not the learning.
     small = {"policy_hidden": [32, 32], "critic_hidden": [32, 32], "min_replay_size": 100,
              "batch_size": 16, "samples_per_insert": 2.0}  # fmt: skip
+    # 370 steps on each of the two envs: each ends one 360-step episode, which is relabelled.
     summary = robogym_ray.train(
-        str(CONFIG), d4pg=small, workers=1, envs_per_worker=2,
-        total_steps=400, random_steps=100, logdir=str(tmp_path), run_name="smoke",
+        str(CONFIG), d4pg=small, workers=1, envs_per_worker=2, relabel_goals=2,
+        total_steps=740, random_steps=100, logdir=str(tmp_path), run_name="smoke",
         progress=False, video_interval_s=0.0, final_eval_episodes=1,
     )  # fmt: skip
     assert summary["task"] == "RoboGymRay/IsaacReachIsaacRewardUR10Sim-v0"
-    assert summary["env_steps"] >= 400 and summary["learner_steps"] > 0
+    assert summary["env_steps"] >= 740 and summary["learner_steps"] > 0
+    # Two copies of each step of the two finished episodes reached the replay, none lost.
+    assert summary["relabelled_transitions"] == 2 * 2 * 360, summary["final_status_counts"]
+    assert summary["lost_transitions"] == 0
     # The variant ends only by time: its evaluator scores the window-end errors.
     assert summary["eval/timeout_rate"] == 1.0 and 0 < summary["eval/window_position_error"] < 3
     config = json.loads((tmp_path / "smoke" / "config.json").read_text())
