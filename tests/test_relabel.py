@@ -164,16 +164,21 @@ def test_tasks_that_cannot_be_relabelled_are_refused(tmp_path: Path) -> None:
     assert list(tmp_path.iterdir()) == []  # refused before anything was written
 
 
-def test_the_isaac_reward_reach_scores_any_command_as_its_own() -> None:
-    """Real PyBullet, 130 random steps (a new command at step 120): ``compute_reward`` of the
-    pose reached and the command the step's observation showed is the env's reward."""
-    env = gym.make("RoboGymRay/IsaacReachIsaacRewardUR10Sim-v0")
+@pytest.mark.parametrize(
+    ("env_id", "window"),
+    [("RoboGymRay/IsaacReachIsaacRewardUR10Sim-v0", 120),
+     ("RoboGymRay/IsaacDeployReachUR10eSim-v0", 240)],
+)  # fmt: skip
+def test_isaac_labs_reach_tasks_score_any_command_as_their_own(env_id: str, window: int) -> None:
+    """Real PyBullet, random steps past the first new command: ``compute_reward`` of the pose
+    reached and the command the step's observation showed is the env's reward."""
+    env = gym.make(env_id)
     try:
-        task = goal_task(env)
+        task = goal_task(env, env_id)
         obs, _ = env.reset(seed=4)
         rng = np.random.default_rng(4)
         commands = set()
-        for _ in range(130):
+        for _ in range(window + 10):
             action = rng.uniform(-0.3, 0.3, 6).astype(np.float32)
             next_obs, reward, _, _, info = env.step(action)
             command = obs[task.goal_slice]

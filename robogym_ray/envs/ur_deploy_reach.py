@@ -62,18 +62,27 @@ def keypoint_error(
     goal_pos: np.ndarray,
     goal_quat: np.ndarray,
     scale: float = KEYPOINT_SCALE,
-) -> float:
-    """Mean distance (m) of the seven keypoints of two poses (quaternions x-y-z-w)."""
-    offsets = scale * KEYPOINTS
-    here = np.asarray(pos) + Rotation.from_quat(quat).apply(offsets)
-    there = np.asarray(goal_pos) + Rotation.from_quat(goal_quat).apply(offsets)
-    return float(np.linalg.norm(here - there, axis=1).mean())
+) -> Any:
+    """Mean distance (m) of the seven keypoints of two poses (quaternions x-y-z-w): a float for
+    one pair, an array for rows of them (hindsight relabelling scores many at once)."""
+    here, there = Rotation.from_quat(quat), Rotation.from_quat(goal_quat)
+    gaps = [
+        np.asarray(pos) - np.asarray(goal_pos) + here.apply(o) - there.apply(o)
+        for o in scale * KEYPOINTS
+    ]
+    distance = np.linalg.norm(np.stack(gaps, axis=-2), axis=-1).mean(axis=-1)
+    return float(distance) if np.ndim(distance) == 0 else distance
 
 
-def exp_kernel(d: float, a: float, b: float) -> float:
+def exp_kernel(d: Any, a: float, b: float) -> Any:
     """``1 / (exp(a d) + b + exp(-a d))``, written so that a large ``a d`` cannot overflow."""
-    e = math.exp(-a * abs(d))
+    e = np.exp(-a * np.abs(d))
     return e / (1.0 + b * e + e * e)
+
+
+def tracking_per_second(d: Any) -> Any:
+    """The reward's keypoint terms before the dt, of the keypoint error ``d`` (m)."""
+    return TRACKING_WEIGHT * d + EXP_WEIGHT * sum(exp_kernel(d, *c) for c in EXP_COEFFS)
 
 
 MAX_KEYPOINT_ERROR = 3.4
@@ -168,6 +177,11 @@ class IsaacDeployReachUR(PoseCommands, UR2Arm):
     """
 
     metadata: ClassVar[dict[str, Any]] = {**URTask.metadata, "render_fps": 60}
+    # A goal task for hindsight relabelling (experience/relabel.py): info carries the pose
+    # reached in the command's layout and the reward's command-free part.
+    goal_slice = slice(12, 19)
+    reward_info_keys = ("effort",)
+    ends_on_goal = False
     needs_arguments = True  # a trajectory server would smear every target over >= 0.5 s
     rs_mode = "only_robot"
     default_joints = (PI, -PI / 2, PI / 2, -PI / 2, -PI / 2, 0.0)
@@ -256,10 +270,27 @@ class IsaacDeployReachUR(PoseCommands, UR2Arm):
         return params
 
     def _to_obs(self, msg: pb.State) -> np.ndarray:
-        x, y, z, qx, qy, qz, qw = self.target_pose
-        quat = [qx, qy, qz, qw] if self.quat_order == "xyzw" else [qw, qx, qy, qz]
-        parts = [self.joints(msg), self.velocities(msg), [x, y, z], quat]
+        parts = [self.joints(msg), self.velocities(msg), self.target_pose[:3],
+                 self._quat_to_obs(self.target_pose[3:])]  # fmt: skip
         return np.concatenate(parts).astype(np.float32)
+
+    def _quat_to_obs(self, xyzw: np.ndarray) -> np.ndarray:
+        return xyzw if self.quat_order == "xyzw" else xyzw[..., [3, 0, 1, 2]]
+
+    def _quat_from_obs(self, quat: np.ndarray) -> np.ndarray:
+        return quat if self.quat_order == "xyzw" else quat[..., [1, 2, 3, 0]]
+
+    def compute_reward(
+        self, achieved_goal: np.ndarray, desired_goal: np.ndarray, info: Mapping[str, Any]
+    ) -> np.ndarray:
+        """The step rewards for poses reached and commands (rows in the observation's command
+        layout) with ``info["effort"]``, per step (the dt applied), as ``_evaluate`` scores
+        the command in force."""
+        achieved = np.atleast_2d(np.asarray(achieved_goal, np.float64))
+        desired = np.atleast_2d(np.asarray(desired_goal, np.float64))
+        d = keypoint_error(achieved[:, :3], self._quat_from_obs(achieved[:, 3:]),
+                           desired[:, :3], self._quat_from_obs(desired[:, 3:]))  # fmt: skip
+        return (tracking_per_second(d) + np.asarray(info["effort"])) / self.action_rate
 
     def _evaluate(
         self, msg: pb.State, obs: np.ndarray, action: np.ndarray
@@ -268,17 +299,18 @@ class IsaacDeployReachUR(PoseCommands, UR2Arm):
         pos, quat = frame_xyz(sd, "ee"), frame_quat(sd, "ee")
         d = keypoint_error(pos, quat, goal[:3], goal[3:])
         a = np.asarray(action, dtype=np.float64)
-        reward = TRACKING_WEIGHT * d + EXP_WEIGHT * sum(exp_kernel(d, *c) for c in EXP_COEFFS)
-        reward += ACTION_WEIGHT * (np.sum((a - self.prev_action) ** 2) + np.sum(a**2))
+        effort = ACTION_WEIGHT * float(np.sum((a - self.prev_action) ** 2) + np.sum(a**2))
         position, rotation = pose_error(pos, Rotation.from_quat(quat), goal)
         info: StepInfo = {
             **self._info(msg),
             "dist_coord": position,
             "dist_rot": rotation,
             "keypoint_error": d,
+            "achieved_goal": np.concatenate([pos, self._quat_to_obs(quat / np.linalg.norm(quat))]),
+            "effort": effort,
             **self.window_errors(position, rotation),
         }
-        return reward / self.action_rate, None, info
+        return (float(tracking_per_second(d)) + effort) / self.action_rate, None, info
 
     def server_spec(self) -> tuple[str, str | None, dict[str, str]]:
         robot, scene, options = super().server_spec()

@@ -6,6 +6,7 @@ and loadable, and ``summary.json`` when there is room for it (the line says when
 
 from __future__ import annotations
 
+import concurrent.futures
 import contextlib
 import json
 import os
@@ -53,7 +54,7 @@ def probe(disk: str, config: str, room_fraction: str) -> None:
     cmd = [
         sys.executable, "-m", "robogym_ray.cli", "train", "--config", config,
         "--task", "navigation", "--workers", "1", "--envs-per-worker", "1",
-        "--total-steps", "20000", "--max-wall-s", "60", "--checkpoint-every", "20",
+        "--total-steps", "20000", "--max-wall-s", "150", "--checkpoint-every", "20",
         "--logdir", disk, "--run-name", "run", "--no-progress", "--no-evaluator",
         "--num-cpus", "2",
     ]  # fmt: skip
@@ -84,12 +85,12 @@ def probe(disk: str, config: str, room_fraction: str) -> None:
     })  # fmt: skip
 
 
-def _train_on_a_filling_disk(tmp_path: Path, room_fraction: float) -> tuple[dict[str, Any], Path]:
-    config = tmp_path / "d4pg.json"
+def _train_on_a_filling_disk(root: Path, room_fraction: float) -> tuple[dict[str, Any], Path]:
+    config = root / "d4pg.json"
     config.write_text(json.dumps(D4PG))
-    disk = tmp_path / "disk"
+    disk = root / "disk"
     out = run_on_tmpfs(
-        disk, "64m", f"{__name__}:probe", str(disk), str(config), str(room_fraction), timeout=150
+        disk, "64m", f"{__name__}:probe", str(disk), str(config), str(room_fraction), timeout=240
     )
     assert out["rc"] == 2, out["stdout"][-2000:] + out["stderr"][-4000:]
     assert "Traceback" not in out["stderr"], out["stderr"][-4000:]
@@ -98,11 +99,26 @@ def _train_on_a_filling_disk(tmp_path: Path, room_fraction: float) -> tuple[dict
     return out, disk / "run"
 
 
+ROOMS = {"half": 0.5, "none": 0.0}
+"""Room left after the first checkpoint, as a fraction of one: half (the next checkpoint fails,
+the summary fits) and none (the summary does not fit either)."""
+
+
+@pytest.fixture(scope="module")
+def filled(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
+    """{room: (what the probe saw, the run folder)}: the two trainings run side by side, each
+    with its own disk and Ray (they stop on a failed write, not on time)."""
+    with concurrent.futures.ThreadPoolExecutor(len(ROOMS)) as pool:
+        runs = {name: pool.submit(_train_on_a_filling_disk, tmp_path_factory.mktemp(name), room)
+                for name, room in ROOMS.items()}  # fmt: skip
+        return {name: run.result() for name, run in runs.items()}
+
+
 def test_a_full_disk_stops_the_run_in_one_line_and_the_summary_is_written_when_it_fits(
-    tmp_path: Path,
+    filled: dict[str, Any],
 ) -> None:
     # Room for half a checkpoint: the next checkpoint fails; the summary fits.
-    out, run = _train_on_a_filling_disk(tmp_path, 0.5)
+    out, run = filled["half"]
     last = out["stderr"].strip().splitlines()[-1]
     learner_pt = run / "checkpoints" / "learner.pt"
     assert last.startswith(f"error: cannot write learner checkpoint {learner_pt}: ")
@@ -115,8 +131,10 @@ def test_a_full_disk_stops_the_run_in_one_line_and_the_summary_is_written_when_i
     assert summary["env_steps"] < 20000  # stopped at the failure, not retried to the end
 
 
-def test_a_disk_with_no_room_for_the_summary_says_so_in_the_same_line(tmp_path: Path) -> None:
-    out, run = _train_on_a_filling_disk(tmp_path, 0.0)
+def test_a_disk_with_no_room_for_the_summary_says_so_in_the_same_line(
+    filled: dict[str, Any],
+) -> None:
+    out, run = filled["none"]
     last = out["stderr"].strip().splitlines()[-1]
     assert last.startswith("error: cannot write ")
     assert "no space left on device" in last

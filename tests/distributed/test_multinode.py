@@ -183,7 +183,7 @@ def test_node_losses_on_a_cluster_of_separate_disks(temp_dir: str, tmp_path: Pat
                     train(port, shared, "--workers", "2", "--envs-per-worker", "2",
                           "--total-steps", "10000000", "--max-wall-s", "1200",
                           "--learner-resource", "learner_node", "--checkpoint-every", "100",
-                          "--replay-snapshot-every-s", "10", "--policy-snapshot-every-s", "0"),
+                          "--replay-snapshot-every-s", "4", "--policy-snapshot-every-s", "0"),
                     env=env, stdout=subprocess.PIPE, stderr=log, text=True,
                 )  # fmt: skip
                 checkpoints = shared / RUN / "checkpoints"
