@@ -123,7 +123,7 @@ TASKS: dict[str, TaskPreset] = {
     "isaac-reach-ur10-isaac-reward": TaskPreset(
         "RoboGymRay/IsaacReachIsaacRewardUR10Sim-v0",
         _ISAAC_REACH_ISAAC_REWARD,
-        "isaac-reach-ur10 on Isaac Lab's own reward and 4-s commands, to train policies for it",
+        "isaac-reach-ur10 on Isaac Lab's reward and 4-s commands; a goal task (--relabel-goals)",
     ),
     # Isaac Lab 3's deploy reach (UR10e): its keypoint reward times 1/60 s per step, plus the
     # action and action-rate L2 terms; episodes end only by the time limit, so the support is the
