@@ -27,6 +27,21 @@ def frame_quat(sd: Mapping[str, float], prefix: str) -> np.ndarray:
     return np.array([sd[f"{prefix}_to_ref_rotation_{a}"] for a in "xyzw"], dtype=np.float64)
 
 
+QUAT_ORDERS = ("xyzw", "wxyz")
+"""Quaternion layouts: scipy's and the servers' x-y-z-w; w-x-y-z, Isaac Lab 2.x's and robo-gym's
+target observations."""
+
+
+def quat_to_order(xyzw: np.ndarray, order: str) -> np.ndarray:
+    """Quaternions (the last axis) given x-y-z-w, laid out in ``order`` (one of ``QUAT_ORDERS``)."""
+    return xyzw if order == "xyzw" else xyzw[..., [3, 0, 1, 2]]
+
+
+def quat_from_order(quat: np.ndarray, order: str) -> np.ndarray:
+    """Quaternions (the last axis) laid out in ``order``, back to x-y-z-w."""
+    return quat if order == "xyzw" else quat[..., [1, 2, 3, 0]]
+
+
 def frame_rotation(sd: Mapping[str, float], prefix: str) -> Rotation:
     """Orientation of frame ``prefix`` in the reference frame.
 

@@ -19,6 +19,7 @@ from typing import Any, ClassVar
 import numpy as np
 from gymnasium import spaces
 
+from robogym_ray.envs.frames import quat_to_order
 from robogym_ray.envs.modular import PoseTask
 from robogym_ray.errors import ConfigError
 from robogym_ray.protocol import robot_server_pb2 as pb
@@ -99,7 +100,7 @@ class IsaacReachTask(PoseTask):
 
     def _to_obs(self, msg: pb.State) -> np.ndarray:
         still = np.zeros(len(self.extra))  # the static joints: at their position, not moving
-        x, y, z, qx, qy, qz, qw = self.target_pose
-        command = [x, y, z, qw, qx, qy, qz]  # Isaac Lab's quaternion order: w first
+        # Isaac Lab's quaternion order: w first.
+        command = [self.target_pose[:3], quat_to_order(self.target_pose[3:], "wxyz")]
         parts = [self.joints(msg) - self.joint_position, still, self.velocities(msg), still]
-        return np.concatenate([*parts, command, self.last_action]).astype(np.float32)
+        return np.concatenate([*parts, *command, self.last_action]).astype(np.float32)

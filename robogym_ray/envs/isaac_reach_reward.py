@@ -31,8 +31,8 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from robogym_ray.envs.base import StepInfo
-from robogym_ray.envs.frames import frame_rotation, frame_xyz
-from robogym_ray.envs.pose_commands import PoseCommands, pose_error
+from robogym_ray.envs.frames import frame_rotation, frame_xyz, quat_from_order, quat_to_order
+from robogym_ray.envs.pose_commands import PoseCommands, pose_error, pose_errors
 from robogym_ray.protocol import robot_server_pb2 as pb
 
 POSITION_WEIGHT, TANH_WEIGHT, TANH_STD, ROTATION_WEIGHT = -0.2, 0.1, 0.1, -0.1
@@ -109,10 +109,11 @@ class IsaacLabReachMDP(PoseCommands):
         with ``info["effort"]``, per step (the dt applied)."""
         achieved = np.atleast_2d(np.asarray(achieved_goal, np.float64))
         desired = np.atleast_2d(np.asarray(desired_goal, np.float64))
-        position = np.linalg.norm(achieved[:, :3] - desired[:, :3], axis=1)
-        xyzw = [4, 5, 6, 3]  # scipy's order
-        turn = Rotation.from_quat(achieved[:, xyzw]) * Rotation.from_quat(desired[:, xyzw]).inv()
-        per_second = tracking_per_second(position, turn.magnitude()) + np.asarray(info["effort"])
+        here, there = (
+            Rotation.from_quat(quat_from_order(r[:, 3:], "wxyz")) for r in (achieved, desired)
+        )
+        position, rotation = pose_errors(achieved[:, :3], here, desired[:, :3], there)
+        per_second = tracking_per_second(position, rotation) + np.asarray(info["effort"])
         return per_second / self.action_rate
 
     def _evaluate(
@@ -128,13 +129,13 @@ class IsaacLabReachMDP(PoseCommands):
         change = np.asarray(action, dtype=np.float64) - self.prev_action
         effort = effort_per_second(change, self.velocities(msg))
         reward = float(tracking_per_second(position, rotation)) + effort
-        x, y, z, w = turn.as_quat(canonical=self.pose_cfg.ee_rotation_quat_unique)
+        reached = turn.as_quat(canonical=self.pose_cfg.ee_rotation_quat_unique)
         info: StepInfo = {
             **self._info(msg),
             "dist_coord": position,
             "dist_rot": rotation,
             "in_collision": self.collided(msg),
-            "achieved_goal": np.array([*xyz, w, x, y, z]),
+            "achieved_goal": np.concatenate([xyz, quat_to_order(reached, "wxyz")]),
             "effort": effort,
             **self.window_errors(position, rotation),
         }

@@ -28,11 +28,20 @@ from robogym_ray.protocol import robot_server_pb2 as pb
 from robogym_ray.protocol.client import RobotServerClient
 
 
-def pose_error(pos: np.ndarray, rotation: Rotation, goal: np.ndarray) -> tuple[float, float]:
+def pose_errors(
+    pos: np.ndarray, rotation: Rotation, goal_pos: np.ndarray, goal_rotation: Rotation
+) -> tuple[np.ndarray, np.ndarray]:
     """Position (m) and rotation (rad, the shortest path: Isaac Lab's
-    ``quat_error_magnitude``) errors of a pose to ``goal`` (xyz, quaternion x-y-z-w)."""
-    position = float(np.linalg.norm(np.asarray(pos, dtype=np.float64) - goal[:3]))
-    return position, float((rotation * Rotation.from_quat(goal[3:]).inv()).magnitude())
+    ``quat_error_magnitude``) errors of poses to goals, row by row (hindsight relabelling
+    scores many at once)."""
+    position = np.linalg.norm(np.asarray(pos, dtype=np.float64) - goal_pos, axis=-1)
+    return position, (rotation * goal_rotation.inv()).magnitude()
+
+
+def pose_error(pos: np.ndarray, rotation: Rotation, goal: np.ndarray) -> tuple[float, float]:
+    """``pose_errors`` of one pose to ``goal`` (xyz, quaternion x-y-z-w)."""
+    position, turn = pose_errors(pos, rotation, goal[:3], Rotation.from_quat(goal[3:]))
+    return float(position), float(turn)
 
 
 class PoseCommands(PoseTask):

@@ -30,6 +30,7 @@ import numpy as np
 import torch
 from scipy.spatial.transform import Rotation
 
+from robogym_ray.envs.frames import QUAT_ORDERS
 from robogym_ray.robots.ur.geometry import LINK_NAMES, forward_kinematics
 
 SCALE = 0.0625
@@ -66,8 +67,8 @@ class DeployReachExpert(torch.nn.Module):
 
     def __init__(self, quat_order: str = "xyzw", model: str = "ur10e") -> None:
         super().__init__()
-        if quat_order not in ("xyzw", "wxyz"):
-            raise ValueError(f"quat_order must be 'xyzw' or 'wxyz', got {quat_order!r}")
+        if quat_order not in QUAT_ORDERS:
+            raise ValueError(f"quat_order must be one of {QUAT_ORDERS}, got {quat_order!r}")
         self.wxyz = quat_order == "wxyz"
         self.scale, self.damping, self.gain = SCALE, DAMPING, GAIN  # TorchScript reads no globals
         root, fixed = chain(model)

@@ -23,7 +23,13 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from robogym_ray.envs.base import StepInfo
-from robogym_ray.envs.frames import frame_quat, frame_xyz
+from robogym_ray.envs.frames import (
+    QUAT_ORDERS,
+    frame_quat,
+    frame_xyz,
+    quat_from_order,
+    quat_to_order,
+)
 from robogym_ray.envs.io_descriptors import ActionTermSpec, IOContract, ObsTerm
 from robogym_ray.envs.pose_commands import PoseCommands, pose_error
 from robogym_ray.envs.ur_common import URTask
@@ -44,7 +50,6 @@ KEYPOINT_SCALE = 0.45
 TRACKING_WEIGHT, EXP_WEIGHT, ACTION_WEIGHT = -1.5, 1.5, -0.005
 EXP_COEFFS = ((50.0, 1e-4), (300.0, 1e-4), (5000.0, 1e-4))
 """``keypoint_command_error_exp``'s ``(a, b)``: ``1 / (exp(a d) + b + exp(-a d))`` each."""
-QUAT_ORDERS = ("xyzw", "wxyz")
 SERVO_MODE = "servo_pos"
 """The UR server's action mode that streams joint targets to a PD servo."""
 ACTUATOR_RANDOMISATION = {
@@ -271,14 +276,8 @@ class IsaacDeployReachUR(PoseCommands, UR2Arm):
 
     def _to_obs(self, msg: pb.State) -> np.ndarray:
         parts = [self.joints(msg), self.velocities(msg), self.target_pose[:3],
-                 self._quat_to_obs(self.target_pose[3:])]  # fmt: skip
+                 quat_to_order(self.target_pose[3:], self.quat_order)]  # fmt: skip
         return np.concatenate(parts).astype(np.float32)
-
-    def _quat_to_obs(self, xyzw: np.ndarray) -> np.ndarray:
-        return xyzw if self.quat_order == "xyzw" else xyzw[..., [3, 0, 1, 2]]
-
-    def _quat_from_obs(self, quat: np.ndarray) -> np.ndarray:
-        return quat if self.quat_order == "xyzw" else quat[..., [1, 2, 3, 0]]
 
     def compute_reward(
         self, achieved_goal: np.ndarray, desired_goal: np.ndarray, info: Mapping[str, Any]
@@ -288,8 +287,9 @@ class IsaacDeployReachUR(PoseCommands, UR2Arm):
         the command in force."""
         achieved = np.atleast_2d(np.asarray(achieved_goal, np.float64))
         desired = np.atleast_2d(np.asarray(desired_goal, np.float64))
-        d = keypoint_error(achieved[:, :3], self._quat_from_obs(achieved[:, 3:]),
-                           desired[:, :3], self._quat_from_obs(desired[:, 3:]))  # fmt: skip
+        order = self.quat_order
+        d = keypoint_error(achieved[:, :3], quat_from_order(achieved[:, 3:], order),
+                           desired[:, :3], quat_from_order(desired[:, 3:], order))  # fmt: skip
         return (tracking_per_second(d) + np.asarray(info["effort"])) / self.action_rate
 
     def _evaluate(
@@ -306,7 +306,9 @@ class IsaacDeployReachUR(PoseCommands, UR2Arm):
             "dist_coord": position,
             "dist_rot": rotation,
             "keypoint_error": d,
-            "achieved_goal": np.concatenate([pos, self._quat_to_obs(quat / np.linalg.norm(quat))]),
+            "achieved_goal": np.concatenate(
+                [pos, quat_to_order(quat / np.linalg.norm(quat), self.quat_order)]
+            ),
             "effort": effort,
             **self.window_errors(position, rotation),
         }

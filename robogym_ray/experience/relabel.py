@@ -118,20 +118,27 @@ class HindsightRelabeller:
         starts = np.repeat(np.arange(length), self.copies)
         # "future": the pose reached at a uniformly drawn step from t to the episode's end.
         future = starts + (self.rng.random(starts.size) * (length - starts)).astype(np.int64)
-        goals = np.stack(steps.achieved)[future]
-        return self.relabel(steps, starts, goals, terminated)
+        reached = np.stack(steps.achieved)
+        return self.relabel(steps, starts, reached[future], terminated, reached=reached)
 
     def relabel(
-        self, steps: EpisodeSteps, starts: np.ndarray, goals: np.ndarray, terminated: bool
+        self,
+        steps: EpisodeSteps,
+        starts: np.ndarray,
+        goals: np.ndarray,
+        terminated: bool,
+        reached: np.ndarray | None = None,
     ) -> list[Transition]:
         """The n-step transitions starting at ``starts`` under the commands ``goals`` (one
-        row each, in the observation slot's layout)."""
+        row each, in the observation slot's layout); ``reached``: ``steps.achieved`` stacked,
+        if the caller has it already."""
         length, n = len(steps), self.n_step
+        reached = np.stack(steps.achieved) if reached is None else reached
         offsets = np.arange(n)
         window = starts[:, None] + offsets[None, :]  # (N, n) step indices
         inside = window < length
         clipped = np.minimum(window, length - 1)
-        achieved = np.stack(steps.achieved)[clipped.ravel()]
+        achieved = reached[clipped.ravel()]
         desired = np.repeat(goals, n, axis=0)
         columns = np.asarray(steps.info, dtype=np.float64).reshape(length, len(self.keys))
         info = {k: columns[clipped.ravel(), i] for i, k in enumerate(self.keys)}
