@@ -1,7 +1,7 @@
-"""The isaac-reach-ur10-isaac-reward experiment end to end, CI-sized: a training from its config
-file (preset, support and recipe; small networks, a short replay warm-up) with hindsight
-relabelling on, then ``evaluate`` on robo-gym 2.1.0's IsaacReachUR10Sim-v0, the env its
-policies are scored on."""
+"""The isaac-reach-ur10-her-average experiment end to end, CI-sized: a training from its config
+file (the isaac-reach-ur10-isaac-reward preset and support, hindsight relabelling, policy
+averaging; small networks, a short replay warm-up), then ``evaluate`` of the averaged policy on
+robo-gym 2.1.0's IsaacReachUR10Sim-v0, the env its policies are scored on."""
 
 from __future__ import annotations
 
@@ -16,7 +16,7 @@ from robogym_ray.cli import main as cli_main
 pytestmark = [pytest.mark.ray, pytest.mark.slow, pytest.mark.usefixtures("ray_cluster")]
 
 CONFIG = (
-    Path(__file__).resolve().parents[2] / "experiments/configs/isaac-reach-ur10-isaac-reward.json"
+    Path(__file__).resolve().parents[2] / "experiments/configs/isaac-reach-ur10-her-average.json"
 )
 ORIGINAL = "RoboGymRay/IsaacReachUR10Sim-v0"
 
@@ -29,22 +29,24 @@ def test_a_short_training_runs_and_evaluate_scores_it_on_isaac_reach_ur10(
              "batch_size": 16, "samples_per_insert": 2.0}  # fmt: skip
     # 370 steps on each of the two envs: each ends one 360-step episode, which is relabelled.
     summary = robogym_ray.train(
-        str(CONFIG), d4pg=small, workers=1, envs_per_worker=2, relabel_goals=2,
+        str(CONFIG), d4pg=small, workers=1, envs_per_worker=2,
         total_steps=740, random_steps=100, logdir=str(tmp_path), run_name="smoke",
         progress=False, video_interval_s=0.0, final_eval_episodes=1,
     )  # fmt: skip
     assert summary["task"] == "RoboGymRay/IsaacReachIsaacRewardUR10Sim-v0"
     assert summary["env_steps"] >= 740 and summary["learner_steps"] > 0
-    # Two copies of each step of the two finished episodes reached the replay, none lost.
-    assert summary["relabelled_transitions"] == 2 * 2 * 360, summary["final_status_counts"]
+    # The config's four copies of each step of the two finished episodes reached the replay.
+    assert summary["relabelled_transitions"] == 4 * 2 * 360, summary["final_status_counts"]
     assert summary["lost_transitions"] == 0
     # The variant ends only by time: its evaluator scores the window-end errors.
     assert summary["eval/timeout_rate"] == 1.0 and 0 < summary["eval/window_position_error"] < 3
     config = json.loads((tmp_path / "smoke" / "config.json").read_text())
     assert (config["d4pg"]["v_min"], config["d4pg"]["v_max"]) == (-4.0, 1.0)
+    assert config["d4pg"]["policy_average_tau"] > 0 and config["train"]["relabel_goals"] == 4
     # Its policy runs unchanged on robo-gym 2.1.0's env and is scored by that env's success.
     argv = [str(tmp_path / "smoke"), "--env-id", ORIGINAL, "--episodes", "2", "--max-steps", "30"]
     assert cli_main(["evaluate", *argv]) == 0
     scored = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert scored["env_id"] == ORIGINAL and scored["n_episodes"] == 2
+    assert scored["policy"].endswith("#policy_average")  # the average, as the evaluator ran it
     assert "success_rate" in scored["rates"] and scored["median_position_error"] > 0

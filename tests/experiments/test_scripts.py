@@ -49,6 +49,8 @@ def load_config(name: str):
         "fr3-positioning",
         "isaac-reach-ur10",
         "isaac-reach-ur10-isaac-reward",
+        "isaac-reach-ur10-her",
+        "isaac-reach-ur10-her-average",
         "isaac-deploy-reach-ur10e-fine",
     ],
 )
@@ -66,6 +68,7 @@ def test_configs_load_and_flags_override_them(name: str) -> None:
     assert (d4pg["critic_hidden"] == [256, 256]) == ("-256" in name)
     assert (train.sigma_final_scale < 1 and train.sigma_decay_steps > 0) == name.endswith("-quiet")
     assert (train.revisit_failed > 0) == name.endswith("-revisit")
+    assert (train.relabel_goals > 0) == ("-her" in name)
     assert ("Sectors" in train.task) == ("-sectors" in name)
     from robogym_ray.training.presets import d4pg_for, resolve_task
 
