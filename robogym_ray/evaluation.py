@@ -28,6 +28,7 @@ import numpy as np
 
 from robogym_ray.config import check_address, check_dir_path, quote
 from robogym_ray.envs import outcomes
+from robogym_ray.envs.frames import QUAT_ORDERS
 from robogym_ray.envs.outcomes import CATEGORIES
 from robogym_ray.envs.registration import server_spec_of, variant_id
 from robogym_ray.envs.render.video import EpisodeVideos
@@ -106,8 +107,8 @@ class EvaluationConfig:
                 raise ConfigError(f"{flag} is for an Isaac Lab policy: add --isaac-lab")
         if not 0.0 < self.ema_alpha <= 1.0:
             raise ConfigError(f"ema_alpha must be in (0, 1], got {self.ema_alpha}")
-        if self.quat_order not in (None, "xyzw", "wxyz"):
-            raise ConfigError(f"quat_order must be xyzw or wxyz, got {self.quat_order!r}")
+        if self.quat_order not in (None, *QUAT_ORDERS):
+            raise ConfigError(f"quat_order must be one of {QUAT_ORDERS}, got {self.quat_order!r}")
         if self.isaac_lab and self.env_id is None:
             raise ConfigError("--isaac-lab needs --env-id: an Isaac Lab policy file names no env")
         if self.rs_address is not None:

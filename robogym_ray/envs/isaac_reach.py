@@ -27,6 +27,9 @@ from robogym_ray.protocol import robot_server_pb2 as pb
 WORLD = "isaactabletop_sphere50_no_collision.world"
 """robo-gym's world for both arms: Isaac Lab's table, its top at the robot's base."""
 
+COMMAND_QUAT_ORDER = "wxyz"
+"""The pose command's quaternion order in the observation: Isaac Lab 2.x's, w first."""
+
 
 class IsaacReachTask(PoseTask):
     """``IsaacReachEnv``: ``PoseTask`` in Isaac Lab's reach spaces (see the leaf classes).
@@ -100,7 +103,6 @@ class IsaacReachTask(PoseTask):
 
     def _to_obs(self, msg: pb.State) -> np.ndarray:
         still = np.zeros(len(self.extra))  # the static joints: at their position, not moving
-        # Isaac Lab's quaternion order: w first.
-        command = [self.target_pose[:3], quat_to_order(self.target_pose[3:], "wxyz")]
+        command = [self.target_pose[:3], quat_to_order(self.target_pose[3:], COMMAND_QUAT_ORDER)]
         parts = [self.joints(msg) - self.joint_position, still, self.velocities(msg), still]
         return np.concatenate([*parts, *command, self.last_action]).astype(np.float32)

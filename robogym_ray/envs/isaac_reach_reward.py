@@ -32,6 +32,7 @@ from scipy.spatial.transform import Rotation
 
 from robogym_ray.envs.base import StepInfo
 from robogym_ray.envs.frames import frame_rotation, frame_xyz, quat_from_order, quat_to_order
+from robogym_ray.envs.isaac_reach import COMMAND_QUAT_ORDER
 from robogym_ray.envs.pose_commands import PoseCommands, pose_error, pose_errors
 from robogym_ray.protocol import robot_server_pb2 as pb
 
@@ -110,7 +111,8 @@ class IsaacLabReachMDP(PoseCommands):
         achieved = np.atleast_2d(np.asarray(achieved_goal, np.float64))
         desired = np.atleast_2d(np.asarray(desired_goal, np.float64))
         here, there = (
-            Rotation.from_quat(quat_from_order(r[:, 3:], "wxyz")) for r in (achieved, desired)
+            Rotation.from_quat(quat_from_order(r[:, 3:], COMMAND_QUAT_ORDER))
+            for r in (achieved, desired)
         )
         position, rotation = pose_errors(achieved[:, :3], here, desired[:, :3], there)
         per_second = tracking_per_second(position, rotation) + np.asarray(info["effort"])
@@ -135,7 +137,7 @@ class IsaacLabReachMDP(PoseCommands):
             "dist_coord": position,
             "dist_rot": rotation,
             "in_collision": self.collided(msg),
-            "achieved_goal": np.concatenate([xyz, quat_to_order(reached, "wxyz")]),
+            "achieved_goal": np.concatenate([xyz, quat_to_order(reached, COMMAND_QUAT_ORDER)]),
             "effort": effort,
             **self.window_errors(position, rotation),
         }
