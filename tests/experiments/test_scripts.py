@@ -51,6 +51,7 @@ def load_config(name: str):
         "isaac-reach-ur10-isaac-reward",
         "isaac-reach-ur10-her",
         "isaac-reach-ur10-her-average",
+        "isaac-reach-ur10-her-average-long-replay",
         "isaac-deploy-reach-ur10e-fine",
     ],
 )
@@ -69,6 +70,7 @@ def test_configs_load_and_flags_override_them(name: str) -> None:
     assert (train.sigma_final_scale < 1 and train.sigma_decay_steps > 0) == name.endswith("-quiet")
     assert (train.revisit_failed > 0) == name.endswith("-revisit")
     assert (train.relabel_goals > 0) == ("-her" in name)
+    assert (d4pg.get("replay_capacity") == 3_000_000) == name.endswith("-long-replay")
     assert ("Sectors" in train.task) == ("-sectors" in name)
     from robogym_ray.training.presets import d4pg_for, resolve_task
 
