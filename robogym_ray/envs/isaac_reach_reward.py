@@ -34,7 +34,6 @@ from robogym_ray.envs.base import StepInfo
 from robogym_ray.envs.frames import frame_rotation, frame_xyz, quat_from_order, quat_to_order
 from robogym_ray.envs.isaac_reach import COMMAND_QUAT_ORDER
 from robogym_ray.envs.pose_commands import PoseCommands, pose_error, pose_errors
-from robogym_ray.errors import ConfigError
 from robogym_ray.protocol import robot_server_pb2 as pb
 
 POSITION_WEIGHT, TANH_WEIGHT, TANH_STD, ROTATION_WEIGHT = -0.2, 0.1, 0.1, -0.1
@@ -42,25 +41,11 @@ ACTION_RATE_WEIGHT, JOINT_VEL_WEIGHT = -1e-4, -1e-4
 """``Isaac-Reach-UR10-v0``'s reward weights (per second: the env multiplies them by its dt)."""
 
 
-def tracking_per_second(
-    position: Any, rotation: Any, rotation_weight: float = ROTATION_WEIGHT
-) -> Any:
+def tracking_per_second(position: Any, rotation: Any) -> Any:
     """The reward's command terms before the dt, of position and rotation errors (m, rad):
     floats, or arrays of them (hindsight relabelling scores many commands at once)."""
     tanh = TANH_WEIGHT * (1.0 - np.tanh(np.asarray(position, np.float64) / TANH_STD))
-    return POSITION_WEIGHT * position + tanh + rotation_weight * rotation
-
-
-def balanced_rotation_weight(distance_threshold: float, rotation_threshold: float) -> float:
-    """The rotation weight at which a rotation error of ``rotation_threshold`` (rad) costs what a
-    position error of ``distance_threshold`` (m) costs: the success thresholds alike.
-
-    Isaac Lab's -0.1 makes 2.1.0's 0.05 rad cost ~1/5 of its 2 cm (0.005 against 0.024 per
-    second, the tanh term's slope dominating), so a policy may settle within 2 cm and miss the
-    rotation; at 2.1.0's thresholds this is -0.475.
-    """
-    position_cost = tracking_per_second(0.0, 0.0) - tracking_per_second(distance_threshold, 0.0)
-    return -float(position_cost) / rotation_threshold
+    return POSITION_WEIGHT * position + tanh + ROTATION_WEIGHT * rotation
 
 
 def effort_per_second(action_change: np.ndarray, joint_velocity: np.ndarray) -> float:
@@ -71,15 +56,11 @@ def effort_per_second(action_change: np.ndarray, joint_velocity: np.ndarray) -> 
 
 
 def reward_per_second(
-    position: float,
-    rotation: float,
-    action_change: np.ndarray,
-    joint_velocity: np.ndarray,
-    rotation_weight: float = ROTATION_WEIGHT,
+    position: float, rotation: float, action_change: np.ndarray, joint_velocity: np.ndarray
 ) -> float:
     """Isaac Lab's reach reward before the dt: position and rotation errors (m, rad) to the
     command, the change of the raw action from the step before, the joint velocities (rad/s)."""
-    tracking = float(tracking_per_second(position, rotation, rotation_weight))
+    tracking = float(tracking_per_second(position, rotation))
     return tracking + effort_per_second(action_change, joint_velocity)
 
 
@@ -89,7 +70,6 @@ def step_reward_range(
     max_velocity: np.ndarray,
     max_position_error: float,
     rate: float,
-    rotation_weight: float = ROTATION_WEIGHT,
 ) -> tuple[float, float]:
     """The bounds of one step's reward (per-second reward / ``rate``, actions per second).
 
@@ -98,8 +78,7 @@ def step_reward_range(
     from one bound to the other on every joint, every joint at ``max_velocity`` (rad/s).
     """
     span = np.asarray(action_high, np.float64) - np.asarray(action_low, np.float64)
-    velocity = np.asarray(max_velocity)
-    worst = reward_per_second(max_position_error, math.pi, span, velocity, rotation_weight)
+    worst = reward_per_second(max_position_error, math.pi, span, np.asarray(max_velocity))
     best = reward_per_second(0.0, 0.0, np.zeros(1), np.zeros(1))
     return worst / rate, best / rate
 
@@ -111,32 +90,12 @@ class IsaacLabReachMDP(PoseCommands):
     the pose reached (``achieved_goal``, in the observation's command layout: xyz, quaternion
     w-x-y-z) and the reward's command-free part (``effort``); ``compute_reward`` scores any
     command the way ``_evaluate`` scores the one in force.
-
-    Args:
-        rotation_weight: the orientation term's weight per rad and second (default
-            ``default_rotation_weight()``: Isaac Lab's -0.1); finite, at most 0.
-        **kwargs: ``PoseCommands``'.
     """
 
     max_episode_steps = 360  # 12 s at 30 Hz: Isaac Lab's dt of 1/60 s x decimation 2
     # A new command every 4 s: PoseCommands' resampling_time default, Isaac Lab's.
     reward_info_keys = ("effort",)
     ends_on_goal = False
-
-    def __init__(self, *, rotation_weight: float | None = None, **kwargs: Any) -> None:
-        super().__init__(**kwargs)
-        weight = self.default_rotation_weight() if rotation_weight is None else rotation_weight
-        if isinstance(weight, bool) or not isinstance(weight, (int, float)):
-            raise ConfigError(f"rotation_weight must be a number, got {rotation_weight!r}")
-        if not (math.isfinite(weight) and weight <= 0):
-            raise ConfigError(
-                f"rotation_weight must be finite and at most 0 (a cost per rad), got {weight!r}"
-            )
-        self.rotation_weight = float(weight)
-
-    def default_rotation_weight(self) -> float:
-        """The orientation term's weight when none is given: Isaac Lab's."""
-        return ROTATION_WEIGHT
 
     @property
     def goal_slice(self) -> slice:
@@ -156,8 +115,7 @@ class IsaacLabReachMDP(PoseCommands):
             for r in (achieved, desired)
         )
         position, rotation = pose_errors(achieved[:, :3], here, desired[:, :3], there)
-        tracking = tracking_per_second(position, rotation, self.rotation_weight)
-        per_second = tracking + np.asarray(info["effort"])
+        per_second = tracking_per_second(position, rotation) + np.asarray(info["effort"])
         return per_second / self.action_rate
 
     def _evaluate(
@@ -172,7 +130,7 @@ class IsaacLabReachMDP(PoseCommands):
         position, rotation = pose_error(xyz, turn, self.scored_pose)
         change = np.asarray(action, dtype=np.float64) - self.prev_action
         effort = effort_per_second(change, self.velocities(msg))
-        reward = float(tracking_per_second(position, rotation, self.rotation_weight)) + effort
+        reward = float(tracking_per_second(position, rotation)) + effort
         reached = turn.as_quat(canonical=self.pose_cfg.ee_rotation_quat_unique)
         info: StepInfo = {
             **self._info(msg),

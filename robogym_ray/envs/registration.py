@@ -72,8 +72,6 @@ TASKS: tuple[tuple[str, str, tuple[RobotVariant, ...]], ...] = (
     ("IsaacReach", _PANDAM + "IsaacReachPanda", _FRANKA),
     # The UR10's on Isaac Lab's own reward, commands and ends (25 obs / 6 actions, as above).
     ("IsaacReachIsaacReward", _ISAAC_REWARD + "IsaacReachIsaacRewardUR", _ur("UR10")),
-    # The same with the rotation term weighted so that 2.1.0's success thresholds cost alike.
-    ("IsaacReachBalancedReward", _ISAAC_REWARD + "IsaacReachBalancedRewardUR", _ur("UR10")),
     # Isaac Lab 3's Isaac-Deploy-Reach-UR10e-v0 (19 obs / 6 actions, 60 Hz).
     ("IsaacDeployReach", _DEPLOY + "IsaacDeployReachUR", _ur("UR10e")),
 )

@@ -1,8 +1,6 @@
 """``IsaacReachIsaacRewardUR10Sim-v0``: robo-gym 2.1.0's UR10 reach (``IsaacReachUR``) on Isaac
 Lab's own reward, commands, ends and resets (``isaac_reach_reward``), for training here; its
 policies are scored on ``IsaacReachUR10Sim-v0``, whose spaces it keeps.
-``IsaacReachBalancedRewardUR10Sim-v0`` is the same MDP with the rotation term weighted so that
-2.1.0's two success thresholds cost alike.
 """
 
 from __future__ import annotations
@@ -11,12 +9,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from robogym_ray.envs.isaac_reach_reward import (
-    ROTATION_WEIGHT,
-    IsaacLabReachMDP,
-    balanced_rotation_weight,
-    step_reward_range,
-)
+from robogym_ray.envs.isaac_reach_reward import IsaacLabReachMDP, step_reward_range
 from robogym_ray.envs.ur_common import JOINT_MAX
 from robogym_ray.envs.ur_modular import IsaacReachUR
 from robogym_ray.robots.ur.geometry import UR_MODELS
@@ -63,7 +56,7 @@ class IsaacReachIsaacRewardUR(IsaacLabReachMDP, IsaacReachUR):
     first command only. Server: ``IsaacReachUR``'s.
 
     ## Arguments
-    ``resampling_time``, ``rotation_weight`` (Isaac Lab's -0.1 per rad) and ``IsaacReachUR``'s.
+    ``resampling_time`` and ``IsaacReachUR``'s.
     """
 
     pose_defaults: ClassVar[dict[str, Any]] = {
@@ -74,40 +67,15 @@ class IsaacReachIsaacRewardUR(IsaacLabReachMDP, IsaacReachUR):
     }
 
 
-class IsaacReachBalancedRewardUR(IsaacReachIsaacRewardUR):
-    """``IsaacReachIsaacRewardUR`` with the orientation term's weight set so that a rotation
-    error at the env's ``ee_rotation_threshold`` costs what a position error at its
-    ``ee_distance_threshold`` costs (``balanced_rotation_weight``: -0.475 per rad at 2.1.0's
-    0.05 rad and 2 cm, from Isaac Lab's -0.1). Everything else is ``IsaacReachIsaacRewardUR``'s:
-    the spaces, commands, ends and resets; its policies are scored on IsaacReachUR10Sim-v0.
-
-    ## Arguments
-    ``IsaacReachIsaacRewardUR``'s; a ``rotation_weight`` given wins over the balanced one.
-    """
-
-    def default_rotation_weight(self) -> float:
-        cfg = self.pose_cfg
-        return balanced_rotation_weight(cfg.ee_distance_threshold, cfg.ee_rotation_threshold)
-
-
-BALANCED_ROTATION_WEIGHT = balanced_rotation_weight(
-    IsaacReachUR.pose_defaults["ee_distance_threshold"],
-    IsaacReachUR.pose_defaults["ee_rotation_threshold"],
-)
-"""``IsaacReachBalancedRewardUR10Sim-v0``'s rotation weight at its default thresholds."""
-
-
-def return_range(
-    discount: float = 0.99, rotation_weight: float = ROTATION_WEIGHT
-) -> tuple[float, float]:
+def return_range(discount: float = 0.99) -> tuple[float, float]:
     """The bounds of a discounted return of ``IsaacReachIsaacRewardUR10Sim-v0`` (episodes end
     only by the time limit, so the horizon is 1 / (1 - discount)), from its action bounds and
-    the UR10's speed limits at the env's 0.2 of them, at 30 Hz; ``rotation_weight`` per rad."""
+    the UR10's speed limits at the env's 0.2 of them, at 30 Hz."""
     default = np.asarray(IsaacReachUR.default_joints)
     scale = 0.5  # isaac_scale's default
     low, high = (-JOINT_MAX - default) / scale, (JOINT_MAX - default) / scale
     speeds = IsaacReachUR.velocity_scale * np.asarray(UR_MODELS["ur10"].max_velocity)
     rate = IsaacReachUR.action_rate
-    worst, best = step_reward_range(low, high, speeds, MAX_POSITION_ERROR, rate, rotation_weight)
+    worst, best = step_reward_range(low, high, speeds, MAX_POSITION_ERROR, rate)
     horizon = 1.0 / (1.0 - discount)
     return worst * horizon, best * horizon

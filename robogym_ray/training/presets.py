@@ -69,16 +69,6 @@ _DEPLOY_REACH = {**_POSITIONING, **_support(ur_deploy_reach.return_range)}
 # +-25 bounds) - 1e-4 x 1.93 (every joint at 0.2 of its speed limit)) / 30 = -0.0389 at worst,
 # 0.1 / 30 = 0.0033 at best (on the command, still), times the horizon of 100 steps.
 _ISAAC_REACH_ISAAC_REWARD = {**_POSITIONING, **_support(ur_isaac_reach_reward.return_range)}
-# [-8, 1]: the same with the rotation term at -0.475 per rad (pi rad costs 1.49 per second, not
-# 0.31).
-_ISAAC_REACH_BALANCED_REWARD = {
-    **_POSITIONING,
-    **_support(
-        lambda discount: ur_isaac_reach_reward.return_range(
-            discount, ur_isaac_reach_reward.BALANCED_ROTATION_WEIGHT
-        )
-    ),
-}
 _NAVIGATION = {"v_min": -300.0, "v_max": 450.0, "layer_norm": True, "min_replay_size": 500}
 
 TASKS: dict[str, TaskPreset] = {
@@ -134,14 +124,6 @@ TASKS: dict[str, TaskPreset] = {
         "RoboGymRay/IsaacReachIsaacRewardUR10Sim-v0",
         _ISAAC_REACH_ISAAC_REWARD,
         "isaac-reach-ur10 on Isaac Lab's reward and 4-s commands; a goal task (--relabel-goals)",
-    ),
-    # The same MDP with the rotation term weighted so that 2.1.0's success thresholds (2 cm,
-    # 0.05 rad) cost alike (envs/ur_isaac_reach_reward.py): Isaac Lab's weights make 0.05 rad
-    # cost a fifth of 2 cm, and the policies trained on them miss on rotation (results-log).
-    "isaac-reach-ur10-balanced-reward": TaskPreset(
-        "RoboGymRay/IsaacReachBalancedRewardUR10Sim-v0",
-        _ISAAC_REACH_BALANCED_REWARD,
-        "isaac-reach-ur10-isaac-reward with rotation weighted as 2.1.0's success weighs it",
     ),
     # Isaac Lab 3's deploy reach (UR10e): its keypoint reward times 1/60 s per step, plus the
     # action and action-rate L2 terms; episodes end only by the time limit, so the support is the

@@ -1,8 +1,6 @@
 """The UR10 reach on Isaac Lab's own MDP (``IsaacReachIsaacRewardUR10Sim-v0``): the spaces, server
 and Isaac Lab terms of ``IsaacReachUR10Sim-v0``; Isaac Lab's reward by hand; a new command every
-4 s; 12-s episodes ended by nothing else; Isaac Lab's reset; and its preset's critic support.
-The balanced variant (``IsaacReachBalancedRewardUR10Sim-v0``): its rotation weight by hand, its
-reward, its refusals and its preset's support."""
+4 s; 12-s episodes ended by nothing else; Isaac Lab's reset; and its preset's critic support."""
 
 from __future__ import annotations
 
@@ -15,7 +13,6 @@ from scipy.spatial.transform import Rotation
 
 import robogym_ray  # noqa: F401 - registers the ids
 from robogym_ray.envs import ENV_IDS
-from robogym_ray.errors import ConfigError
 from tests.envs.conftest import check_env_warnings
 from tests.envs.test_isaac_reach import KNOWN_WARNINGS
 
@@ -24,21 +21,15 @@ SIM, ROB = (
     "RoboGymRay/IsaacReachIsaacRewardUR10Rob-v0",
 )
 ORIGINAL = "RoboGymRay/IsaacReachUR10Sim-v0"
-BALANCED = "RoboGymRay/IsaacReachBalancedRewardUR10Sim-v0"
 DEFAULT = np.array([0.0, -1.712, 1.712, 0.0, 0.0, 0.0])
-# 2 cm costs 0.2 x 0.02 + 0.1 x tanh(0.02 / 0.1) per second against the command's 0.1; 0.05 rad
-# costs as much at this weight.
-BALANCED_WEIGHT = -(0.2 * 0.02 + 0.1 * math.tanh(0.2)) / 0.05
 
 
-def isaac_lab_reward(
-    position: float, rotation: float, change, velocity, rotation_weight: float = -0.1
-) -> float:
+def isaac_lab_reward(position: float, rotation: float, change, velocity) -> float:
     """Isaac Lab's five reach terms times their weights and the step dt of 2 x 1/60 s."""
     terms = [
         -0.2 * position,
         0.1 * (1.0 - math.tanh(position / 0.1)),
-        rotation_weight * rotation,
+        -0.1 * rotation,
         -1e-4 * float(np.sum(np.square(change))),
         -1e-4 * float(np.sum(np.square(velocity))),
     ]
@@ -85,11 +76,8 @@ def test_ids_spaces_server_and_isaac_terms_are_isaac_reach_ur10s() -> None:
         original.close()
 
 
-@pytest.mark.parametrize(("env_id", "weight"), [(SIM, -0.1), (BALANCED, BALANCED_WEIGHT)])
-def test_a_step_scores_tool1_against_the_command_by_isaac_labs_formula(
-    env_id: str, weight: float
-) -> None:
-    env = gym.make(env_id, rs_state_to_info=True)
+def test_a_step_scores_tool1_against_the_command_by_isaac_labs_formula() -> None:
+    env = gym.make(SIM, rs_state_to_info=True)
     try:
         env.reset(seed=5, options={"joint_positions": DEFAULT})
         task = env.unwrapped
@@ -108,7 +96,7 @@ def test_a_step_scores_tool1_against_the_command_by_isaac_labs_formula(
             position = float(np.linalg.norm(here - goal[:3]))
             rotation = angle(quat_here, goal[3:])
             velocity = [sd[k] for k in task.velocity_keys]
-            expected = isaac_lab_reward(position, rotation, action - previous, velocity, weight)
+            expected = isaac_lab_reward(position, rotation, action - previous, velocity)
             assert reward == pytest.approx(expected, abs=1e-6)
             assert info["dist_coord"] == pytest.approx(position, abs=1e-6)
             assert info["dist_rot"] == pytest.approx(rotation, abs=1e-5)
@@ -198,67 +186,3 @@ def test_bang_bang_steps_stay_inside_the_reward_range_and_the_presets_support() 
     assert (preset.d4pg["v_min"], preset.d4pg["v_max"]) == (-4.0, 1.0)
     assert preset.d4pg["v_min"] <= 100 * worst < preset.d4pg["v_min"] + 1
     assert 100 * best <= preset.d4pg["v_max"] < 100 * best + 1
-
-
-def test_the_balanced_variant_weighs_the_two_success_thresholds_alike() -> None:
-    from robogym_ray.envs.isaac_reach_reward import tracking_per_second
-    from robogym_ray.envs.ur_isaac_reach_reward import BALANCED_ROTATION_WEIGHT
-
-    assert pytest.approx(-0.4747506, abs=1e-7) == BALANCED_WEIGHT
-    assert pytest.approx(BALANCED_WEIGHT, abs=1e-12) == BALANCED_ROTATION_WEIGHT
-    at_2cm = tracking_per_second(0.02, 0.0, BALANCED_WEIGHT)
-    at_005rad = tracking_per_second(0.0, 0.05, BALANCED_WEIGHT)
-    assert at_2cm == pytest.approx(at_005rad, abs=1e-12)
-    env, original = gym.make(BALANCED), gym.make(SIM)
-    try:
-        assert BALANCED in ENV_IDS and BALANCED.replace("Sim", "Rob") in ENV_IDS
-        assert env.unwrapped.rotation_weight == BALANCED_ROTATION_WEIGHT
-        assert original.unwrapped.rotation_weight == -0.1
-        for space in ("observation_space", "action_space"):
-            assert getattr(env, space) == getattr(original, space)
-        assert env.unwrapped.isaac_io() == original.unwrapped.isaac_io()
-    finally:
-        env.close()
-        original.close()
-    # The weight follows the env's thresholds; one given wins.
-    loose = gym.make(BALANCED, ee_distance_threshold=0.04, ee_rotation_threshold=0.1)
-    given = gym.make(BALANCED, rotation_weight=-0.3)
-    try:
-        expected = -(0.2 * 0.04 + 0.1 * math.tanh(0.4)) / 0.1
-        assert loose.unwrapped.rotation_weight == pytest.approx(expected)
-        assert given.unwrapped.rotation_weight == -0.3
-    finally:
-        loose.close()
-        given.close()
-
-
-@pytest.mark.parametrize(
-    ("weight", "message"),
-    [
-        (0.2, "at most 0"),
-        (float("nan"), "finite"),
-        (float("-inf"), "finite"),
-        ("-0.3", "must be a number"),
-        (True, "must be a number"),
-    ],
-)
-def test_a_bad_rotation_weight_is_refused_by_name(weight, message: str) -> None:
-    with pytest.raises(ConfigError, match=f"rotation_weight.*{message}"):
-        gym.make(SIM, rotation_weight=weight)
-
-
-def test_the_balanced_presets_support_covers_its_returns() -> None:
-    from robogym_ray.envs.ur_isaac_reach_reward import BALANCED_ROTATION_WEIGHT, return_range
-    from robogym_ray.training.presets import TASKS
-
-    worst, best = return_range(0.99, BALANCED_ROTATION_WEIGHT)
-    # The worst step adds (0.475 - 0.1) x pi rad per second, over 30 steps a second and a
-    # horizon of 100 steps, to the Isaac Lab reward's.
-    extra = (BALANCED_WEIGHT + 0.1) * math.pi / 30 * 100
-    assert worst == pytest.approx(return_range(0.99)[0] + extra)
-    assert best == pytest.approx(return_range(0.99)[1])
-    preset = TASKS["isaac-reach-ur10-balanced-reward"]
-    assert preset.env_id == BALANCED
-    assert (preset.d4pg["v_min"], preset.d4pg["v_max"]) == (-8.0, 1.0)
-    assert preset.d4pg["v_min"] <= worst < preset.d4pg["v_min"] + 1
-    assert best <= preset.d4pg["v_max"] < best + 1
