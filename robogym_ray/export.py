@@ -9,8 +9,7 @@ The robot PC needs only torch to run the TorchScript file, only onnxruntime to r
 (no robogym_ray, no Ray); ``robogym-ray run-policy`` drives a robot server with either.
 
 A checkpoint is ``learner.pt`` as ``D4PGLearner.save`` writes it; the policy's architecture is
-read back from its weights (hidden sizes, LayerNorm, the observation normaliser), so no config is
-needed to load it.
+read back from its weights (hidden sizes, LayerNorm), so no config is needed to load it.
 """
 
 from __future__ import annotations
@@ -47,7 +46,6 @@ class PolicyInfo:
     act_dim: int
     policy_hidden: tuple[int, ...]
     layer_norm: bool
-    obs_norm: bool = False
     env_id: str | None = None
     action_low: tuple[float, ...] | None = None
     action_high: tuple[float, ...] | None = None
@@ -79,14 +77,13 @@ def policy_from_state_dict(state: dict[str, torch.Tensor]) -> tuple[nn.Module, P
     layer_norm = any(w.dim() == 1 for w in layers.values())
     hidden = tuple(int(w.shape[0]) for w in linear[:-1])
     obs_dim, act_dim = int(linear[0].shape[1]), int(linear[-1].shape[0])
-    obs_norm = any(str(key).startswith("norm.") for key in state)  # ObsNormalizer's buffers
     try:
-        policy = Policy(obs_dim, act_dim, hidden, layer_norm, obs_norm)
+        policy = Policy(obs_dim, act_dim, hidden, layer_norm)
         policy.load_state_dict(state)
     except (RuntimeError, ValueError, TypeError) as exc:  # shapes that make no policy
         raise ConfigError(f"not a policy state dict: {clip_text(str(exc), 300)}") from None
     policy.eval().requires_grad_(False)
-    return policy, PolicyInfo(obs_dim, act_dim, hidden, layer_norm, obs_norm)
+    return policy, PolicyInfo(obs_dim, act_dim, hidden, layer_norm)
 
 
 def load_checkpoint_policy(

@@ -43,7 +43,7 @@ class Evaluator:
         there (its count and seeds), with an empty window."""
         self.env = make_env()
         obs_dim, act_dim = box_dims(self.env)
-        self.actor = BehaviourPolicy.of(d4pg, obs_dim, act_dim, 0.0)
+        self.actor = BehaviourPolicy(obs_dim, act_dim, d4pg.policy_hidden, 0.0, d4pg.layer_norm)
         self.seed = seed
         self.episodes = first_episode
         self.statuses: deque[str] = deque(maxlen=window)

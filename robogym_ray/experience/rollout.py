@@ -153,7 +153,14 @@ class RolloutWorker:
         self.low = self.env.action_space.low.astype(np.float64)
         self.high = self.env.action_space.high.astype(np.float64)
         self.sigma = d4pg.sigma if sigma is None else sigma
-        self.actor = BehaviourPolicy.of(d4pg, obs_dim, act_dim, self.sigma, seed=seed)
+        self.actor = BehaviourPolicy(
+            obs_dim,
+            act_dim,
+            d4pg.policy_hidden,
+            self.sigma,
+            d4pg.layer_norm,
+            seed=seed,
+        )
         self.random_steps = random_steps
         self.rng = np.random.default_rng(seed + 7919)
         self.weights_version = -1

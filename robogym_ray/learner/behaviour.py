@@ -7,15 +7,11 @@ What Acme calls an actor; named for what it is here, because "actor" already mea
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
 
 from robogym_ray.learner.networks import Policy
-
-if TYPE_CHECKING:
-    from robogym_ray.learner.config import D4PGConfig
 
 
 class BehaviourPolicy:
@@ -32,21 +28,11 @@ class BehaviourPolicy:
         sigma: float,
         layer_norm: bool = False,
         seed: int | None = None,
-        obs_norm: bool = False,
     ) -> None:
-        self.policy = Policy(obs_dim, act_dim, hidden, layer_norm, obs_norm).requires_grad_(False)
+        self.policy = Policy(obs_dim, act_dim, hidden, layer_norm).requires_grad_(False)
         self.sigma = sigma
         self.act_dim = act_dim
         self.rng = np.random.default_rng(seed)
-
-    @classmethod
-    def of(
-        cls, d4pg: D4PGConfig, obs_dim: int, act_dim: int, sigma: float, seed: int | None = None
-    ) -> BehaviourPolicy:
-        """The behaviour policy whose network matches the learner's for these settings."""
-        return cls(
-            obs_dim, act_dim, d4pg.policy_hidden, sigma, d4pg.layer_norm, seed, d4pg.obs_norm
-        )
 
     def set_weights(self, weights: dict[str, np.ndarray]) -> None:
         self.policy.load_state_dict({k: torch.as_tensor(v) for k, v in weights.items()})

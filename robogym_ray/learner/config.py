@@ -36,11 +36,6 @@ class D4PGConfig:
     """Hidden layer sizes of the distributional critic (input: concatenated obs and action)."""
     layer_norm: bool = False
     """Put a LayerNorm after every hidden Linear (Acme-style); helps with unscaled inputs."""
-    obs_norm: bool = False
-    """Normalise observations in both networks by running mean and std, ``(obs - mean) / (std +
-    0.01)`` as rsl_rl's policies do, clipped to +-5 as HER's baselines do, from the transitions
-    the learner is given; the statistics ship inside the policy's weights, checkpoints and
-    exports (``networks.ObsNormalizer``)."""
     num_atoms: int = 51
     """Number of atoms of the categorical value distribution."""
     v_min: float = -150.0

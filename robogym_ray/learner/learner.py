@@ -88,11 +88,9 @@ class D4PGLearner:
             # Flushing them to zero changes nothing that matters for training.
             torch.set_flush_denormal(True)
         c = config
-        self.policy = Policy(obs_dim, act_dim, c.policy_hidden, c.layer_norm, c.obs_norm).to(
-            self.device
-        )
+        self.policy = Policy(obs_dim, act_dim, c.policy_hidden, c.layer_norm).to(self.device)
         self.critic = DistributionalCritic(
-            obs_dim, act_dim, c.critic_hidden, c.num_atoms, c.layer_norm, c.obs_norm
+            obs_dim, act_dim, c.critic_hidden, c.num_atoms, c.layer_norm
         ).to(self.device)
         self.target_policy = copy.deepcopy(self.policy).requires_grad_(False)
         self.target_critic = copy.deepcopy(self.critic).requires_grad_(False)
@@ -129,25 +127,8 @@ class D4PGLearner:
 
     # --- data in ------------------------------------------------------------------------
     def add(self, batch: dict[str, np.ndarray], priorities: np.ndarray | None = None) -> None:
-        """Insert n-step transitions; ``priorities=None`` uses the replay's running max.
-
-        With ``obs_norm`` their observations also move the normalisers' statistics: the online
-        policy's, copied into every other network's, so that the critic, the targets and the
-        average see observations as the policy does (the next weights the workers fetch carry
-        them)."""
+        """Insert n-step transitions; ``priorities=None`` uses the replay's running max."""
         self.replay.add(batch, priorities)
-        if self.policy.norm is not None:
-            self.policy.norm.update(torch.as_tensor(batch["obs"], device=self.device))
-            self._copy_norm()
-
-    def _copy_norm(self) -> None:
-        """The online policy's normaliser statistics into every other network's, in place (a
-        captured CUDA graph reads them where they are)."""
-        source = list(self.policy.norm.buffers())
-        with torch.no_grad():
-            for net in (self.critic, self.target_policy, self.target_critic, self.policy_average):
-                if net is not None:
-                    torch._foreach_copy_(list(net.norm.buffers()), source)
 
     def can_step(self) -> bool:
         return len(self.replay) >= max(self.config.min_replay_size, self.config.batch_size)
@@ -357,8 +338,6 @@ class D4PGLearner:
 
     def set_weights(self, weights: dict[str, np.ndarray]) -> None:
         self.policy.load_state_dict({k: torch.as_tensor(v) for k, v in weights.items()})
-        if self.policy.norm is not None:  # the other networks see observations as it does
-            self._copy_norm()
 
     def save(self, path: str | os.PathLike, include_replay: bool = False) -> None:
         """Write networks, targets, optimizers, counters to ``path`` and, with

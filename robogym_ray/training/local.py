@@ -90,7 +90,9 @@ def train(run: RunConfig, cfg: D4PGConfig) -> dict[str, Any]:
     obs_dim, act_dim = env.observation_space.shape[0], env.action_space.shape[0]
     low, high = env.action_space.low, env.action_space.high
     learner = D4PGLearner(cfg, obs_dim, act_dim, seed=run.seed)
-    actor = BehaviourPolicy.of(cfg, obs_dim, act_dim, cfg.sigma, seed=run.seed)
+    actor = BehaviourPolicy(
+        obs_dim, act_dim, cfg.policy_hidden, cfg.sigma, cfg.layer_norm, seed=run.seed
+    )
     actor.set_weights(learner.get_weights())
     nstep = NStepAccumulator(cfg.n_step, cfg.discount)
     limiter = SamplesPerInsert(cfg.samples_per_insert, cfg.batch_size)

@@ -164,9 +164,9 @@ def learner_networks(
     denormal mode in this (driver) process.
     """
     try:
-        policy = Policy(obs_dim, act_dim, d4pg.policy_hidden, d4pg.layer_norm, d4pg.obs_norm)
+        policy = Policy(obs_dim, act_dim, d4pg.policy_hidden, d4pg.layer_norm)
         critic = DistributionalCritic(
-            obs_dim, act_dim, d4pg.critic_hidden, d4pg.num_atoms, d4pg.layer_norm, d4pg.obs_norm
+            obs_dim, act_dim, d4pg.critic_hidden, d4pg.num_atoms, d4pg.layer_norm
         )
     except (RuntimeError, ValueError, TypeError) as exc:
         raise ConfigError(
@@ -219,8 +219,7 @@ def check_init_from(
             f"{label} {init_from}: not a D4PG checkpoint for obs_dim={obs_dim}, "
             f"act_dim={act_dim}, policy_hidden={list(d4pg.policy_hidden)}, "
             f"critic_hidden={list(d4pg.critic_hidden)}, num_atoms={d4pg.num_atoms}, "
-            f"layer_norm={d4pg.layer_norm}, obs_norm={d4pg.obs_norm} "
-            f"({type(exc).__name__}: {clip_text(str(exc), 300)})"
+            f"layer_norm={d4pg.layer_norm} ({type(exc).__name__}: {clip_text(str(exc), 300)})"
         ) from None
     return state
 
