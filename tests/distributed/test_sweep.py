@@ -58,21 +58,21 @@ def restorable(sweep: Path) -> int:
 def test_four_trials_two_at_a_time_and_asha_stops_the_worse(
     tmp_path: Path, capsys: pytest.CaptureFixture
 ) -> None:
-    # ASHA counts work, not seconds: --time-attr env_steps, its one rung at 1,550 (the next,
-    # 3,100, is past every result of a 3,000-step trial), comparing learner steps. A trial
-    # with min_replay_size=100000 never takes a learner step; one with 100 has taken some
-    # by 1,550 env steps on any machine (its learner steps as it inserts, one per eight
-    # transitions, and the driver's count of them is at most two calls behind). Grid order:
-    # good s0, worse s0, good s1, worse s1; the last starts after two have ended, one of them
-    # at least a good one, recorded at the rung, so the rung's median is above 0 when the last
-    # gets there: stopped. One env per worker: the evaluator, stepping one env as the worker
-    # does, ends episodes (results) between the rung and the trial's end, with room for an
-    # evaluator that starts late (2,200 env steps after its worker on 2 cores, 2026-11-28).
+    # ASHA counts work, not seconds: --time-attr env_steps, rungs at 800, 1,600, 3,200 and
+    # 6,400 env steps, comparing learner steps. A trial with min_replay_size=100000 never
+    # takes a learner step; one with 100 has taken some by 800 env steps on any machine (it
+    # learns from 100 transitions on, one step per eight inserted, and the driver's count is
+    # at most two calls behind). Grid order: good s0, worse s0, good s1, worse s1; the last
+    # starts after two have ended, one of them at least a good one, recorded at every rung,
+    # so any result of the last past 800 and before its end stops it. Results are the
+    # evaluator's windows, and the evaluator may start seconds after its worker (2,200 env
+    # steps on 2 cores, 2026-11-28; more than 2,800 once, 2026-11-29, when a 3,000-step trial
+    # had no window left to be stopped at): 10,000 steps leave over 9,000 env steps for it.
     # ASHA may stop a good one too (one that trails the median).
-    argv = [*BASE, "envs_per_worker=1", "d4pg.samples_per_insert=4", "total_steps=3000",
+    argv = [*BASE, "envs_per_worker=1", "d4pg.samples_per_insert=4", "total_steps=10000",
             "--space", "d4pg.min_replay_size=100,100000", "--seeds", "0", "1",
             "--max-concurrent", "2", "--scheduler", "asha", "--metric", "learner_steps",
-            "--time-attr", "env_steps", "--grace-period", "1550", "--storage", str(tmp_path),
+            "--time-attr", "env_steps", "--grace-period", "800", "--storage", str(tmp_path),
             "--name", "four"]  # fmt: skip
     assert main(["sweep", *argv]) == 0
     sweep = tmp_path / "four"
