@@ -286,6 +286,36 @@ def test_train_checks_cpus_and_logdir_before_ray(
     assert "exists and is not a directory" in line
 
 
+def test_an_evaluator_env_that_cannot_take_the_policy_is_refused_before_ray(
+    tmp_path: Path, capfd: pytest.CaptureFixture
+) -> None:
+    runs = tmp_path / "runs"
+    # Other spaces: Pendulum's policy maps 3 observations to 1 action, MountainCar's env has 2.
+    line = train_fails(capfd, runs, "--task", "pendulum", "--eval-env-id",
+                       "MountainCarContinuous-v0")  # fmt: skip
+    assert line.startswith("error: --eval-env-id (MountainCarContinuous-v0): its observation "
+                           "space is Box("), line  # fmt: skip
+    assert "the task Pendulum-v1's is Box(" in line and "unchanged" in line
+    # Not registered: the task's own wording, with its nearest name.
+    line = train_fails(capfd, runs, "--task", "pendulum", "--eval-env-id", "Pendulm-v1")
+    assert line.startswith("error: --eval-env-id (Pendulm-v1): unknown task"), line
+    assert "Pendulum-v1" in line
+    # Nothing to play it without an evaluator.
+    line = train_fails(capfd, runs, "--task", "pendulum", "--no-evaluator", "--eval-env-id",
+                       "Pendulum-v1")  # fmt: skip
+    assert line == "error: --eval-env-id 'Pendulum-v1': expected null without evaluator"
+    # The same spaces pass: a short name resolves to its env.
+    from robogym_ray.config import FLAGS
+    from robogym_ray.experience.rollout import make_gym_env
+
+    probe = make_gym_env("RoboGymRay/IsaacReachIsaacRewardUR10Sim-v0")()
+    try:
+        got = run_setup.check_eval_env("isaac-reach-ur10", probe, "the variant", FLAGS)
+    finally:
+        probe.close()
+    assert got == "RoboGymRay/IsaacReachUR10Sim-v0"
+
+
 def test_outputs_under_a_file_are_refused_before_the_work(
     tmp_path: Path, capfd: pytest.CaptureFixture
 ) -> None:

@@ -123,6 +123,10 @@ class TrainConfig:
     learner starts with an empty replay. summary.json's lost_transitions counts the loss."""
     evaluator: bool = True
     """Run an evaluator actor with the greedy policy on its own env."""
+    eval_env_id: str | None = None
+    """The evaluator's env (an id or a task name) when not the task's; same spaces, checked.
+    eval/* and select_episodes then follow its success, e.g. isaac-reach-ur10 for a run of
+    isaac-reach-ur10-isaac-reward. null = the task's env."""
     eval_interval_s: float = 0.0
     """Seconds from the start of one evaluator call to the start of the next (0 = back to
     back). On 2 cores a back-to-back evaluator costs the learner 15-20 percent of its steps
@@ -219,6 +223,7 @@ class TrainConfig:
                 "0 or >= 1 (files are named to 0.01 min)",
             ),
             (self.evaluator or not self.select_episodes, "select_episodes", "0 without evaluator"),
+            (self.evaluator or self.eval_env_id is None, "eval_env_id", "null without evaluator"),
             (self.weight_sync_steps >= 1, "weight_sync_steps", ">= 1"),
             (self.sigma_min >= 0, "sigma_min", ">= 0"),
             (self.sigma_decay_start >= 0, "sigma_decay_start", ">= 0"),

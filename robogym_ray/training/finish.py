@@ -80,7 +80,8 @@ def finish(
                                  out_of_time=out_of_time)  # fmt: skip
     summary = stats.summary(
         run_stats, final,
-        task=p.preset.env_id, wall_s=round(wall_s, 2), checkpoint=checkpoint,
+        task=p.preset.env_id, eval_env_id=p.eval_env_id,
+        wall_s=round(wall_s, 2), checkpoint=checkpoint,
         restarts=stats.all_restarts(run_stats, p.restart_counts()),
         # A server's fault past the restart policy's limit: given up, not restarted (its
         # holder leases another), so faults = sum(restarts) + servers_given_up.

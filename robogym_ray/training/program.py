@@ -52,7 +52,7 @@ from robogym_ray.robots.emulation import EmulationConfig
 from robogym_ray.storage import RunStorage, local_file
 from robogym_ray.training import setup
 from robogym_ray.training.config import TrainConfig
-from robogym_ray.training.presets import TaskPreset
+from robogym_ray.training.presets import TaskPreset, resolve_task
 from robogym_ray.training.resources import ActorNeed, actor_need
 from robogym_ray.training.selection import PolicySnapshots, SnapshotSelector
 from robogym_ray.training.stats import WorkerSlot
@@ -104,6 +104,8 @@ class Program:
         probe = make_gym_env(env_id)()  # dimensions only: it never resets, so no server
         self.obs_dim, self.act_dim = box_dims(probe)
         probe.close()
+        # check_inputs checked its spaces against the task's; this resolves a short name.
+        self.eval_env_id = resolve_task(cfg.eval_env_id).env_id if cfg.eval_env_id else env_id
         if cfg.init_from:
             seed_checkpoint(cfg.init_from, self.storage, d4pg, self.obs_dim, self.act_dim)
         self.learner = remote.LearnerActor.options(
@@ -136,11 +138,11 @@ class Program:
         the actor starts: a replacement follows the config as it is then)."""
         return actor_need(self.cfg, role, learner_gpus(self.cfg))
 
-    def _env_kwargs(self, index: int | None) -> dict[str, Any]:
+    def _env_kwargs(self, index: int | None, env_id: str) -> dict[str, Any]:
         """Sim envs build their robots in their own process (``sim_path="inprocess"``) or lease
         servers from the supervisor, as holder ``worker-INDEX`` (the evaluator, index None:
         ``evaluator``); the first ``emulated_workers`` get emulated robots, the evaluator never."""
-        if not self.preset.env_id.startswith("RoboGymRay/"):
+        if not env_id.startswith("RoboGymRay/"):
             return {}
         emulated = (
             self.emulation if index is not None and index < self.cfg.emulated_workers else None
@@ -165,7 +167,8 @@ class Program:
 
     def _rollout_actor(self, i: int, real_env: Any = None, generation: int = 0) -> Any:
         cfg = self.cfg
-        factory = real_env or make_gym_env(self.preset.env_id, self._env_kwargs(i))
+        env_id = self.preset.env_id
+        factory = real_env or make_gym_env(env_id, self._env_kwargs(i, env_id))
         name = f"rollout-{self.name}-{i}" + (f"-{generation}" if generation else "")
         # A real robot's worker goes anywhere: it reaches its robot through the real-robot actor.
         placement = self._need("real-robot worker" if real_env else "rollout worker").options()
@@ -183,8 +186,8 @@ class Program:
         )  # fmt: skip
 
     def _evaluator_actor(self, generation: int = 0, first_episode: int = 0) -> Any:
-        cfg, env_id = self.cfg, self.preset.env_id
-        kwargs = self._env_kwargs(None) | evaluator_env_kwargs(cfg, env_id)
+        cfg, env_id = self.cfg, self.eval_env_id
+        kwargs = self._env_kwargs(None, env_id) | evaluator_env_kwargs(cfg, env_id)
         name = f"evaluator-{self.name}" + (f"-{generation}" if generation else "")
         return remote.EvaluatorActor.options(
             name=name, namespace=NAMESPACE, **self._need("evaluator").options(),

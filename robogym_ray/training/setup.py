@@ -146,12 +146,37 @@ def check_inputs(
             except ConfigError as exc:
                 given = words.given("relabel_goals", cfg.relabel_goals)
                 raise ConfigError(f"{given}: {exc}") from None
+        if cfg.eval_env_id is not None:
+            check_eval_env(cfg.eval_env_id, probe, preset.env_id, words)
     finally:
         probe.close()
     if init_from:
         check_init_from(init_from, d4pg, obs_dim, act_dim, state, label)
     else:
         learner_networks(d4pg, obs_dim, act_dim)
+
+
+def check_eval_env(eval_env_id: str, task_env: Any, task_id: str, words: Words = FLAGS) -> str:
+    """The evaluator's env id for ``eval_env_id`` (an id, or a task's short name): registered,
+    and with ``task_env``'s observation and action spaces, since the policy trained on
+    ``task_id`` must run there unchanged. ConfigError otherwise."""
+    given = words.given("eval_env_id", eval_env_id)
+    try:
+        env_id = resolve_task(eval_env_id).env_id
+    except ConfigError as exc:
+        raise ConfigError(f"{given}: {exc}") from None
+    other = make_gym_env(env_id)()  # dimensions only, as the task's probe
+    try:
+        for name in ("observation_space", "action_space"):
+            theirs, ours = getattr(other, name), getattr(task_env, name)
+            if theirs != ours:
+                raise ConfigError(
+                    f"{given}: its {name.replace('_', ' ')} is {theirs}, the task {task_id}'s "
+                    f"is {ours}; the evaluator's env must take the task's policy unchanged"
+                )
+    finally:
+        other.close()
+    return env_id
 
 
 def learner_networks(

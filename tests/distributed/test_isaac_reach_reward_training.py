@@ -1,7 +1,8 @@
 """The isaac-reach-ur10-her-average experiment end to end, CI-sized: a training from its config
 file (the isaac-reach-ur10-isaac-reward preset and support, hindsight relabelling, policy
 averaging; small networks, a short replay warm-up), then ``evaluate`` of the averaged policy on
-robo-gym 2.1.0's IsaacReachUR10Sim-v0, the env its policies are scored on."""
+robo-gym 2.1.0's IsaacReachUR10Sim-v0, the env its policies are scored on; and a training of it
+whose evaluator plays that env (``eval_env_id``)."""
 
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ import pytest
 
 import robogym_ray
 from robogym_ray.cli import main as cli_main
+from robogym_ray.learner.checkpoint import BEST_POLICY_NAME
 
 pytestmark = [pytest.mark.ray, pytest.mark.slow, pytest.mark.usefixtures("ray_cluster")]
 
@@ -19,17 +21,17 @@ CONFIG = (
     Path(__file__).resolve().parents[2] / "experiments/configs/isaac-reach-ur10-her-average.json"
 )
 ORIGINAL = "RoboGymRay/IsaacReachUR10Sim-v0"
+# Small networks, few learner steps: the path is under test, not the learning.
+SMALL = {"policy_hidden": [32, 32], "critic_hidden": [32, 32], "min_replay_size": 100,
+         "batch_size": 16, "samples_per_insert": 2.0}  # fmt: skip
 
 
 def test_a_short_training_runs_and_evaluate_scores_it_on_isaac_reach_ur10(
     tmp_path: Path, capsys: pytest.CaptureFixture
 ) -> None:
-    # Small networks, few learner steps: the path is under test, not the learning.
-    small = {"policy_hidden": [32, 32], "critic_hidden": [32, 32], "min_replay_size": 100,
-             "batch_size": 16, "samples_per_insert": 2.0}  # fmt: skip
     # 370 steps on each of the two envs: each ends one 360-step episode, which is relabelled.
     summary = robogym_ray.train(
-        str(CONFIG), d4pg=small, workers=1, envs_per_worker=2,
+        str(CONFIG), d4pg=SMALL, workers=1, envs_per_worker=2,
         total_steps=740, random_steps=100, logdir=str(tmp_path), run_name="smoke",
         progress=False, video_interval_s=0.0, final_eval_episodes=1,
     )  # fmt: skip
@@ -50,3 +52,22 @@ def test_a_short_training_runs_and_evaluate_scores_it_on_isaac_reach_ur10(
     assert scored["env_id"] == ORIGINAL and scored["n_episodes"] == 2
     assert scored["policy"].endswith("#policy_average")  # the average, as the evaluator ran it
     assert "success_rate" in scored["rates"] and scored["median_position_error"] > 0
+
+
+def test_the_evaluator_plays_isaac_reach_ur10_while_the_variant_trains(tmp_path: Path) -> None:
+    # eval_env_id (a short name here): the greedy policy is scored on robo-gym 2.1.0's env, by
+    # its success, and select_episodes keeps policy-best.pt by those episodes. The run's last
+    # evaluator call is waited for, so one is scored however short the run.
+    summary = robogym_ray.train(
+        str(CONFIG), d4pg=SMALL, workers=1, envs_per_worker=1, total_steps=200,
+        random_steps=100, logdir=str(tmp_path), run_name="elsewhere", progress=False,
+        video_interval_s=0.0, final_eval_episodes=1, eval_env_id="isaac-reach-ur10",
+        select_episodes=1,
+    )  # fmt: skip
+    assert summary["task"] == "RoboGymRay/IsaacReachIsaacRewardUR10Sim-v0"
+    assert summary["eval_env_id"] == ORIGINAL
+    # 2.1.0's episodes end at the target, in a collision or at their limit, and have no
+    # command windows: the variant's evaluator always reports window errors (the test above).
+    assert "eval/success_rate" in summary and "eval/window_position_error" not in summary
+    assert summary["best_snapshot"]["snapshots_scored"] >= 1
+    assert (tmp_path / "elsewhere" / "checkpoints" / BEST_POLICY_NAME).is_file()
