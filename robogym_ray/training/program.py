@@ -138,11 +138,12 @@ class Program:
         the actor starts: a replacement follows the config as it is then)."""
         return actor_need(self.cfg, role, learner_gpus(self.cfg))
 
-    def _env_kwargs(self, index: int | None, env_id: str) -> dict[str, Any]:
+    def _env_kwargs(self, index: int | None, env_id: str | None = None) -> dict[str, Any]:
         """Sim envs build their robots in their own process (``sim_path="inprocess"``) or lease
         servers from the supervisor, as holder ``worker-INDEX`` (the evaluator, index None:
-        ``evaluator``); the first ``emulated_workers`` get emulated robots, the evaluator never."""
-        if not env_id.startswith("RoboGymRay/"):
+        ``evaluator``); the first ``emulated_workers`` get emulated robots, the evaluator never.
+        ``env_id``: the env they are for (default the task's; the evaluator's may differ)."""
+        if not (env_id or self.preset.env_id).startswith("RoboGymRay/"):
             return {}
         emulated = (
             self.emulation if index is not None and index < self.cfg.emulated_workers else None
@@ -167,8 +168,7 @@ class Program:
 
     def _rollout_actor(self, i: int, real_env: Any = None, generation: int = 0) -> Any:
         cfg = self.cfg
-        env_id = self.preset.env_id
-        factory = real_env or make_gym_env(env_id, self._env_kwargs(i, env_id))
+        factory = real_env or make_gym_env(self.preset.env_id, self._env_kwargs(i))
         name = f"rollout-{self.name}-{i}" + (f"-{generation}" if generation else "")
         # A real robot's worker goes anywhere: it reaches its robot through the real-robot actor.
         placement = self._need("real-robot worker" if real_env else "rollout worker").options()
