@@ -119,14 +119,18 @@ class Program:
             storage=self.storage, checkpoint_every=cfg.checkpoint_every,
             replay_snapshot_every_s=cfg.replay_snapshot_every_s,
         )  # fmt: skip
-        # A continued run starts at the checkpoint's step count; rates count this run's steps.
-        status = ray.get(self.learner.status.remote())
-        self.first_learner_step, self.first_total_added = status["version"], status["total_added"]
-        log.info("learner on %s: %s, %d torch threads", status["node"], status["device"],
-                 status["threads"])  # fmt: skip
+        # The learner's first call, queued before any worker can add to it: its answer is the
+        # state the run starts from. The workers and the evaluator start while the learner's
+        # process does (importing torch takes seconds), not after it.
+        first_status = self.learner.status.remote()
         self.workers = self._start_workers()
         if cfg.evaluator:
             self.evaluator = self._evaluator_actor()
+        # A continued run starts at the checkpoint's step count; rates count this run's steps.
+        status = ray.get(first_status)
+        self.first_learner_step, self.first_total_added = status["version"], status["total_added"]
+        log.info("learner on %s: %s, %d torch threads", status["node"], status["device"],
+                 status["threads"])  # fmt: skip
         checkpoints = self.storage.child("checkpoints")
         staged = self.run_dir / "checkpoints"
         selecting = cfg.select_episodes and self.evaluator is not None
