@@ -119,9 +119,10 @@ class Program:
             storage=self.storage, checkpoint_every=cfg.checkpoint_every,
             replay_snapshot_every_s=cfg.replay_snapshot_every_s,
         )  # fmt: skip
-        # The learner's first call, queued before any worker can add to it: its answer is the
-        # state the run starts from. The workers and the evaluator start while the learner's
-        # process does (importing torch takes seconds), not after it.
+        # The learner's first call: its answer is the state the run starts from. It is read
+        # before the loop asks any worker to collect (a worker adds to the learner only in
+        # collect), so no batch is counted in it. The workers and the evaluator start while the
+        # learner's process does (importing torch takes seconds), not after it.
         first_status = self.learner.status.remote()
         self.workers = self._start_workers()
         if cfg.evaluator:
