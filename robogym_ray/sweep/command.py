@@ -25,6 +25,7 @@ HELP_GROUPS: dict[str, tuple[str, ...]] = {
         "time_attr",
         "grace_period",
         "reduction_factor",
+        "report_every_steps",
     ),
     "placement (each trial's actors in a placement group of its own)": (
         "trial_cpus",

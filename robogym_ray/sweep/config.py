@@ -55,6 +55,12 @@ class SweepConfig:
     grace_period: float = 0.0
     """ASHA: no trial is stopped before this much --time-attr (0: an eighth of the trials'
     total_steps, or of max_wall_s with wall_s)."""
+    report_every_steps: int = 0
+    """A trial's result every this many env steps besides its evaluator windows (0: windows
+    only), carrying --metric as the last window left it: ASHA then decides at its env-step
+    rungs however late a trial's evaluator starts. A result is sent only once it can carry
+    --metric (an eval/* metric: after the first window). Below the base's steps_per_call it
+    is one result per worker call. --resume keeps the value the sweep started with."""
     reduction_factor: float = 2.0
     """ASHA: 1/this of the trials at a rung go on to the next."""
     trial_cpus: float = 0.1
@@ -79,6 +85,7 @@ class SweepConfig:
             (self.time_attr in TIME_ATTRS, "time_attr", f"one of {', '.join(TIME_ATTRS)}"),
             (self.grace_period >= 0, "grace_period", ">= 0"),
             (self.reduction_factor > 1, "reduction_factor", "> 1"),
+            (self.report_every_steps >= 0, "report_every_steps", ">= 0 (0 = windows only)"),
             (self.trial_cpus > 0, "trial_cpus", "> 0"),
             (self.placement in PLACEMENTS, "placement", f"one of {', '.join(PLACEMENTS)}"),
             (self.num_cpus is None or self.num_cpus > 0, "num_cpus", "> 0 or null"),

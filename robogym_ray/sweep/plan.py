@@ -67,6 +67,8 @@ class SweepPlan:
             "runs": self.runs,
             "trial_cpus": self.cfg.trial_cpus,
             "placement": self.cfg.placement,
+            "metric": self.cfg.metric,
+            "report_every_steps": self.cfg.report_every_steps,
         }
         return param_space(self.base, self.axes, meta)
 

@@ -22,6 +22,9 @@ TABLE = "summary.md"
 """The sweep's summary: space, metric, best trial, then the table."""
 FIGURE = "curves.png"
 MARKS = (0.9, 0.95)
+BETWEEN_WINDOWS = "between_windows"
+"""Set in a trial's results between its evaluator windows (``--report-every-steps``): an eval/*
+metric there repeats the last window's."""
 
 
 @dataclass
@@ -164,6 +167,17 @@ def best_line(trials: Sequence[Trial], metric: str, mode: str, again: str) -> st
     )
 
 
+def curve(results: Sequence[Mapping[str, Any]], metric: str) -> list[tuple[float, float]]:
+    """A trial's (wall minutes, ``metric``) points; an eval/* metric at its windows only (a
+    result between them repeats the last window's value)."""
+    windows_only = metric.startswith("eval/")
+    return [
+        (r["wall_s"] / 60, r[metric])
+        for r in results
+        if metric in r and "wall_s" in r and not (windows_only and r.get(BETWEEN_WINDOWS))
+    ]
+
+
 def figure(trials: Sequence[Trial], path: str, metric: str) -> bool:
     """``metric`` (success rate by default; the deploy reach's window-end error) against wall
     time, a line per trial; False when matplotlib is missing."""
@@ -176,8 +190,7 @@ def figure(trials: Sequence[Trial], path: str, metric: str) -> bool:
         return False
     fig, ax = plt.subplots(figsize=(7, 4))
     for t in trials:
-        points = [(r["wall_s"] / 60, r[metric]) for r in t.results if metric in r and "wall_s" in r]
-        if points:
+        if points := curve(t.results, metric):
             label = ", ".join(f"{k}={v}" for k, v in t.settings.items()) or t.name
             ax.plot(*zip(*points, strict=True), label=label)
     ax.set_xlabel("wall time (min)")

@@ -3,10 +3,12 @@
 bundles ``trial_resources`` makes from the builder's table (``training/resources.py``).
 
 Each evaluator window is one Tune result (success rate, return, env and learner steps/s, env
-steps so far); a result after which the learner has written a new checkpoint (every
-``checkpoint_every`` learner steps) carries a Tune checkpoint: a copy of ``learner.pt`` and the
-trial's counts so far. The run's own folder - config, summary, TensorBoard, checkpoints and the
-replay snapshot as ``replay_snapshot_every_s`` says - is ``<sweep>/runs/<trial name>``.
+steps so far); with the sweep's ``report_every_steps``, so is every that many env steps between
+windows (the counts, and the sweep's metric as the last window left it). A result after which
+the learner has written a new checkpoint (every ``checkpoint_every`` learner steps) carries a
+Tune checkpoint: a copy of ``learner.pt`` and the trial's counts so far. The run's own folder
+- config, summary, TensorBoard, checkpoints and the replay snapshot as
+``replay_snapshot_every_s`` says - is ``<sweep>/runs/<trial name>``.
 
 A trial that Tune stops (an ASHA decision, the sweep interrupted) ends the way a stopped run
 ends: final checkpoint and ``summary.json`` with ``ended: stopped``, ``stopped_by: scheduler``.
@@ -39,6 +41,7 @@ from robogym_ray.learner.checkpoint import CHECKPOINT_NAME, RUN_CHECKPOINT
 from robogym_ray.storage import RunStorage
 from robogym_ray.sweep.bundles import bundles, check_fit
 from robogym_ray.sweep.config import SweepConfig
+from robogym_ray.sweep.report import BETWEEN_WINDOWS
 from robogym_ray.training.ending import COUNTS
 from robogym_ray.training.program import learner_gpus
 from robogym_ray.training.resources import ActorNeed, actor_needs
@@ -93,13 +96,19 @@ class TrainingTrial(tune.Trainable):
         # Bundle 0 is this actor's; the run's actors must fit the others (a ConfigError here
         # is the trial's one-line error, before any actor starts).
         check_fit(trial_needs(self.settings), group.bundle_specs[1:] if group else [])
-        self.runs = config.get("sweep", {}).get("runs") or storage_root(self.settings.train)
+        sweep = config.get("sweep", {})
+        self.runs = sweep.get("runs") or storage_root(self.settings.train)
+        self.metric = str(sweep.get("metric", ""))
         self.before = {"env_steps": 0, "episodes": 0, "wall_s": 0.0}
         self.part = 1  # the run's part (a restored trial continues its run: the next part)
         self.run_name: str | None = None
         self.copy: str | None = None  # a restored Tune checkpoint's learner.pt
         self.events: queue.Queue[tuple[str, Any]] = queue.Queue()
-        self.control = RunControl(on_eval=lambda window: self.events.put(("window", window)))
+        self.control = RunControl(
+            on_eval=lambda window: self.events.put(("window", window)),
+            on_progress=lambda counts: self.events.put(("progress", counts)),
+            progress_every=int(sweep.get("report_every_steps", 0)),
+        )
         self.thread: threading.Thread | None = None
         self.last: dict[str, Any] = {}
         self.checkpointed = 0  # checkpoint_every marks passed at the last reported checkpoint
@@ -108,10 +117,16 @@ class TrainingTrial(tune.Trainable):
     def step(self) -> dict[str, Any]:
         if self.thread is None:
             self._start()
-        kind, data = self.events.get()
-        if kind == "error":
-            raise data
-        return self._final(data) if kind == "end" else self._window(data)
+        while True:
+            kind, data = self.events.get()
+            if kind == "error":
+                raise data
+            if kind == "end":
+                return self._final(data)
+            if kind == "window":
+                return self._window(data)
+            if (result := self._progress(data)) is not None:
+                return result
 
     def save_checkpoint(self, checkpoint_dir: str) -> None:
         folder = RunStorage(self.runs).child(self.run_name or self.trial_name)
@@ -119,6 +134,9 @@ class TrainingTrial(tune.Trainable):
         record = {
             "run_name": self.run_name,
             "parts": self.part,
+            # The metric as the last window left it, for results between a restored part's
+            # windows before its first one.
+            **({self.metric: self.last[self.metric]} if self.metric in self.last else {}),
             **{k: self.last.get(k, 0) for k in COUNTS},
         }
         (Path(checkpoint_dir) / TRIAL_RECORD).write_text(json.dumps(record))
@@ -178,21 +196,39 @@ class TrainingTrial(tune.Trainable):
         self.thread.start()
 
     def _window(self, window: Mapping[str, float]) -> dict[str, Any]:
-        metrics = {
-            "env_steps": self.before["env_steps"] + int(window["env_steps"]),
-            "wall_s": round(self.before["wall_s"] + window["wall_s"], 2),
-            "learner_steps": int(window["learner_steps"]),
-            "episodes": self.before["episodes"] + int(window["episodes"]),
+        return self._report(self._counted(window, {
             "eval/success_rate": window["success_rate"],
             "eval/return": window["return"],
             "eval/snapshot_success_rate": window["snapshot_success_rate"],
             "eval/episodes": int(window["eval_episodes"]),
             # a task with command windows: its measure (m, rad), for --metric and the figure
             **{f"eval/{key}": window[key] for key in WINDOW_KEYS if key in window},
-            "throughput/env_steps_per_s": round(window["env_steps_per_s"], 2),
-            "throughput/learner_steps_per_s": round(window["learner_steps_per_s"], 2),
+        }))  # fmt: skip
+
+    def _progress(self, counts: Mapping[str, float]) -> dict[str, Any] | None:
+        """A result between windows: the counts, and the sweep's metric as the last window
+        left it (the figure skips it). None while it cannot carry the metric (an eval/* one
+        before the first window): Tune refuses a result without it."""
+        last = {self.metric: self.last[self.metric]} if self.metric in self.last else {}
+        metrics = self._counted(counts, {**last, BETWEEN_WINDOWS: True})
+        return self._report(metrics) if self.metric in metrics else None
+
+    def _counted(self, counts: Mapping[str, float], rest: Mapping[str, Any]) -> dict[str, Any]:
+        """A result: the run's counts (this part's, on top of the parts before) and ``rest``."""
+        return {
+            **rest,  # first: a metric that is a count (learner_steps) is this result's
+            "env_steps": self.before["env_steps"] + int(counts["env_steps"]),
+            "wall_s": round(self.before["wall_s"] + counts["wall_s"], 2),
+            "learner_steps": int(counts["learner_steps"]),
+            "episodes": self.before["episodes"] + int(counts["episodes"]),
+            "throughput/env_steps_per_s": round(counts["env_steps_per_s"], 2),
+            "throughput/learner_steps_per_s": round(counts["learner_steps_per_s"], 2),
             "run": RunStorage(self.runs).child(self.run_name or "").location(),
         }
+
+    def _report(self, metrics: dict[str, Any]) -> dict[str, Any]:
+        """``metrics`` as the trial's last result, with a Tune checkpoint when the learner has
+        written a new one since the result before."""
         every = self.settings.train.checkpoint_every
         marks = metrics["learner_steps"] // every if every else 0
         if marks > self.checkpointed:  # the learner has written a checkpoint since the last
@@ -203,7 +239,7 @@ class TrainingTrial(tune.Trainable):
 
     def _final(self, summary: Mapping[str, Any]) -> dict[str, Any]:
         metrics = {
-            **self.last,
+            **{k: v for k, v in self.last.items() if k != BETWEEN_WINDOWS},
             "env_steps": self.before["env_steps"] + int(summary["env_steps"]),
             "wall_s": round(self.before["wall_s"] + float(summary["wall_s"]), 2),
             "learner_steps": int(summary["learner_steps"]),
@@ -212,7 +248,8 @@ class TrainingTrial(tune.Trainable):
             "ended_by": summary.get("ended_by", ""),
             "checkpoint": summary.get("checkpoint") or "",
         }
-        for key in ("eval/success_rate", "eval/return", *(f"eval/{k}" for k in WINDOW_KEYS)):
+        evals = ("eval/success_rate", "eval/return", "eval/episodes")
+        for key in (*evals, *(f"eval/{k}" for k in WINDOW_KEYS)):
             if key in summary:
                 metrics[key] = summary[key]
         self.last = metrics

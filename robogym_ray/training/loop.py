@@ -21,7 +21,6 @@ from typing import Any
 
 import ray
 from ray.exceptions import (
-    ActorUnavailableError,
     GetTimeoutError,
     OwnerDiedError,
     RayActorError,
@@ -35,69 +34,11 @@ from robogym_ray.supervision.restart_policy import FaultCause
 from robogym_ray.training import setup, stats
 from robogym_ray.training.evals import EvalSchedule
 from robogym_ray.training.finish import disk_error, finish
+from robogym_ray.training.learner_deaths import LearnerDeaths
 from robogym_ray.training.program import Program
 from robogym_ray.training.stats import RunStats, WorkerSlot
 
 log = logging.getLogger(__name__)
-
-
-class LearnerDeaths:
-    """Counts the learner's deaths, not its failed calls: one death fails every call in flight
-    to it (several workers' batches at once), and a call also fails when the worker that sent
-    it died. A death is a change of the learner's pid (Ray restarted it), seen by asking it
-    after a failed call or in what a call returned."""
-
-    def __init__(self, learner: Any, wait_s: float = 120.0) -> None:
-        self.learner, self.wait_s = learner, wait_s
-        self.count = 0
-        self.pid = self._ask()
-        # Every pid the learner ever had: a late answer from a dead process is not a new death.
-        self._seen: set[int] = set() if self.pid is None else {self.pid}
-        # The learner did not answer after a failure: that death is counted already, so the
-        # pid it comes back with (slower than wait_s) is not another.
-        self._unanswered = self.pid is None
-
-    def _ask(self) -> int | None:
-        """The learner's pid; waits out a restart (restoring a checkpoint and replay takes
-        seconds). None: it did not answer (dead for good after ``max_restarts``, or slower)."""
-        deadline = time.monotonic() + self.wait_s
-        while True:
-            try:
-                left = max(0.0, deadline - time.monotonic())
-                return int(ray.get(self.learner.ping.remote(), timeout=left))
-            except ActorUnavailableError:  # sent before Ray saw it restart: ask the new one
-                if time.monotonic() >= deadline:
-                    return None
-                time.sleep(0.1)
-            except (RayActorError, GetTimeoutError):
-                return None
-
-    def call_failed(self) -> bool:
-        """A learner call failed; True when that is a death not counted yet."""
-        now = self._ask()
-        if now is not None:
-            return self._new_pid(now)  # same pid: an earlier death, or the sender's
-        if self._unanswered:
-            return False
-        self._unanswered = True
-        self.count += 1
-        return True
-
-    def answered(self, pid: int) -> bool:
-        """A call returned from ``pid``: a new pid is a death whose calls never failed here.
-        True when ``pid`` is a process not seen before (a restarted learner to look at)."""
-        return self._new_pid(pid)
-
-    def _new_pid(self, pid: int) -> bool:
-        if pid in self._seen:
-            return False
-        self._seen.add(pid)
-        self.pid = pid
-        if self._unanswered:  # its death was counted when the old process stopped answering
-            self._unanswered = False
-        else:
-            self.count += 1
-        return True
 
 
 class TrainingLoop:
@@ -105,21 +46,23 @@ class TrainingLoop:
 
     ``on_eval``: called (in the loop's thread: it must not block) with each evaluator window's
     figures, those of ``eval_history``, the training episodes and the rates so far (a Tune
-    trial's report). ``checkpointed``: the earlier parts' counts as the caller's checkpoint
-    recorded them, for ``whole_run`` when the earlier part wrote no summary (``finish``)."""
+    trial's report). ``progress``: (N, call): ``call`` gets the counts and rates every N env
+    steps, between windows. ``checkpointed``: the earlier parts' counts as the caller's
+    checkpoint recorded them, for ``whole_run`` when the earlier part wrote no summary."""
 
     def __init__(
         self,
         program: Program,
         on_eval: Callable[[dict[str, float]], None] | None = None,
         checkpointed: Mapping[str, Any] | None = None,
+        progress: tuple[int, Callable[[dict[str, float]], None]] | None = None,
     ) -> None:
         self.p, self.cfg = program, program.cfg
         self.stats = RunStats()
         self.weights_ref = program.learner.get_weights.remote()
         self.learner_deaths = LearnerDeaths(program.learner)
         self.weights_stale = False
-        self.on_eval = on_eval
+        self.on_eval, self.progress, self._progress_mark = on_eval, progress, 0
         self.checkpointed = checkpointed
         self.evals = EvalSchedule(program, self.stats, on_entry=self._eval_window)
         self.stop = threading.Event()
@@ -171,6 +114,7 @@ class TrainingLoop:
                 logger.scalar("episode/return", ep.ret, self.stats.env_steps)
                 logger.scalar("episode/length", ep.length, self.stats.env_steps)
             logger.advance(result.steps)
+            self._report_progress()
             self.stats.transitions_sent += result.transitions
             self.stats.relabelled_transitions += result.relabelled
             if result.learner_call is not None:  # the worker sent its batch to the learner
@@ -212,14 +156,29 @@ class TrainingLoop:
         self.stop.set()
 
     def _eval_window(self, entry: dict[str, float]) -> None:
-        if self.on_eval is None:
+        if self.on_eval is not None:
+            eval_episodes = self.stats.eval.get("eval_episodes", 0.0)
+            self.on_eval(self._rates({**entry, "eval_episodes": eval_episodes}))
+
+    def _report_progress(self) -> None:
+        if self.progress is None:
             return
-        wall = max(entry["wall_s"], 1e-9)
-        learned = max(0, entry["learner_steps"] - self.p.first_learner_step)
-        self.on_eval({**entry, "eval_episodes": self.stats.eval.get("eval_episodes", 0.0),
-                      "episodes": self.stats.episodes,
-                      "env_steps_per_s": entry["env_steps"] / wall,
-                      "learner_steps_per_s": learned / wall})  # fmt: skip
+        every, call = self.progress
+        if self.stats.env_steps // every > self._progress_mark:
+            self._progress_mark = self.stats.env_steps // every
+            # A resumed run's learner starts from its checkpoint's step, not 0, before it answers.
+            learner_steps = max(int(self.stats.learner.get("learner_steps", 0)),
+                                self.p.first_learner_step)  # fmt: skip
+            call(self._rates({"wall_s": round(self._wall(), 2), "env_steps": self.stats.env_steps,
+                              "learner_steps": learner_steps}))  # fmt: skip
+
+    def _rates(self, counts: dict[str, float]) -> dict[str, float]:
+        """``counts`` (wall_s, env and learner steps) with the episodes and the rates so far."""
+        wall = max(counts["wall_s"], 1e-9)
+        learned = max(0, counts["learner_steps"] - self.p.first_learner_step)
+        return {**counts, "episodes": self.stats.episodes,
+                "env_steps_per_s": counts["env_steps"] / wall,
+                "learner_steps_per_s": learned / wall}  # fmt: skip
 
     def _take_replies(self, wait_s: float = 0.0) -> None:
         """Take the answers (and errors) of the calls in ``_replies`` that have finished

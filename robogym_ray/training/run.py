@@ -30,8 +30,10 @@ from robogym_ray.training.program import Program
 
 class RunControl:
     """A training driven from outside its loop (a Tune trial): ``on_eval`` gets each evaluator
-    window's figures (``TrainingLoop``'s), and ``stop(by)``, from any thread, ends the run as
-    a signal does - also when asked before the loop exists (while the actors start).
+    window's figures (``TrainingLoop``'s), ``on_progress`` the counts and rates every
+    ``progress_every`` env steps between them (0: never), and ``stop(by)``, from any thread,
+    ends the run as a signal does - also when asked before the loop exists (while the actors
+    start).
 
     ``checkpointed``: the run's counts before this part (``ending.COUNTS`` and ``parts``) as
     the caller's own checkpoint recorded them (a Tune trial restored from one); the summary's
@@ -41,8 +43,11 @@ class RunControl:
         self,
         on_eval: Callable[[dict[str, float]], None] | None = None,
         checkpointed: Mapping[str, Any] | None = None,
+        on_progress: Callable[[dict[str, float]], None] | None = None,
+        progress_every: int = 0,
     ) -> None:
         self.on_eval = on_eval
+        self.progress = (progress_every, on_progress) if on_progress and progress_every else None
         self.checkpointed = checkpointed
         self._lock = threading.Lock()
         self._loop: TrainingLoop | None = None
@@ -90,6 +95,7 @@ def run_training(
         program,
         on_eval=control.on_eval if control else None,
         checkpointed=control.checkpointed if control else None,
+        progress=control.progress if control else None,
     )
     if control is not None:
         control.attach(loop)

@@ -104,7 +104,8 @@ def test_the_final_evaluation_needs_at_least_one_episode() -> None:
 def test_a_replacement_evaluator_no_node_can_place_does_not_hold_up_the_end(
     tmp_path: Path,
 ) -> None:
-    with _program(tmp_path, run_name="unplaced", worker_deadline_s=3.0) as (cfg, program, logger):
+    short = {"worker_deadline_s": 3.0, "final_eval_episodes": 2}
+    with _program(tmp_path, run_name="unplaced", **short) as (cfg, program, logger):
         run_stats = RunStats()
         schedule = EvalSchedule(program, run_stats)
         schedule.final(None, logger, wall_s=1.0)  # one evaluation, then the evaluator is lost

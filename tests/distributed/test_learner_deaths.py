@@ -13,7 +13,7 @@ import ray
 from ray.exceptions import ActorUnavailableError, RayActorError
 
 from robogym_ray.distributed import remote
-from robogym_ray.training.loop import LearnerDeaths
+from robogym_ray.training.learner_deaths import LearnerDeaths
 from tests.learner.test_service_replay import ACT, OBS, SMALL, batch
 
 pytestmark = [pytest.mark.ray, pytest.mark.usefixtures("ray_cluster")]

@@ -21,13 +21,19 @@ from robogym_ray.training.setup import run_place
 pytestmark = [pytest.mark.slow]
 
 
+@pytest.mark.usefixtures("ray_cluster")
 def test_ctrl_c_stops_the_run_with_its_checkpoint_and_summary(tmp_path: Path) -> None:
     """The first SIGINT stops collection; the final checkpoint holds the last learner step the
-    printed summary reports, and summary.json says the run was stopped, and by what."""
+    printed summary reports, and summary.json says the run was stopped, and by what. The
+    process joins the suite's Ray (--address), as a driver on a cluster does: the embedded
+    Ray's own start and stop are the S3 and disk-full tests'."""
+    import ray
+
     argv = [sys.executable, "-m", "robogym_ray.cli", "train", "--task", "pendulum",
             "--workers", "1", "--total-steps", "10000000", "--logdir", str(tmp_path),
-            "--run-name", "sig", "--checkpoint-every", "50", "--no-progress", "--num-cpus", "2",
-            "--json"]  # fmt: skip
+            "--run-name", "sig", "--checkpoint-every", "50", "--no-progress", "--json",
+            "--no-evaluator",
+            "--address", ray.get_runtime_context().gcs_address]  # fmt: skip
     env = {**os.environ, "RAY_AUTH_MODE": "disabled"}
     proc = children.popen(argv, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                           text=True)  # fmt: skip

@@ -58,22 +58,22 @@ def restorable(sweep: Path) -> int:
 def test_four_trials_two_at_a_time_and_asha_stops_the_worse(
     tmp_path: Path, capsys: pytest.CaptureFixture
 ) -> None:
-    # ASHA counts work, not seconds: --time-attr env_steps, rungs at 800, 1,600, 3,200 and
-    # 6,400 env steps, comparing learner steps. A trial with min_replay_size=100000 never
-    # takes a learner step; one with 100 has taken some by 800 env steps on any machine (it
-    # learns from 100 transitions on, one step per eight inserted, and the driver's count is
-    # at most two calls behind). Grid order: good s0, worse s0, good s1, worse s1; the last
-    # starts after two have ended, one of them at least a good one, recorded at every rung,
-    # so any result of the last past 800 and before its end stops it. Results are the
-    # evaluator's windows, and the evaluator may start seconds after its worker (2,200 env
-    # steps on 2 cores, 2026-11-28; more than 2,800 once, 2026-11-29, when a 3,000-step trial
-    # had no window left to be stopped at): 10,000 steps leave over 9,000 env steps for it.
+    # ASHA counts work, not seconds: --time-attr env_steps, rungs at 400, 800, 1,600 and 3,200
+    # env steps, comparing learner steps. A trial with min_replay_size=100000 never takes a
+    # learner step; one with 100 has taken some by 400 env steps on any machine (it learns
+    # from 100 transitions on, one step per eight inserted, and the driver's count is at most
+    # two calls behind). Grid order: good s0, worse s0, good s1, worse s1; the last starts
+    # after two have ended, one of them at least a good one, recorded at every rung. Each
+    # trial reports every 100 env steps (--report-every-steps), not only at its evaluator's
+    # windows, which may start seconds after its worker: so the last one's result at 400 env
+    # steps stops it, however late its evaluator. A worse trial takes no learner step and
+    # runs fast: its 3,600 steps after the rung leave Tune time to stop it before its end.
     # ASHA may stop a good one too (one that trails the median).
-    argv = [*BASE, "envs_per_worker=1", "d4pg.samples_per_insert=4", "total_steps=10000",
+    argv = [*BASE, "envs_per_worker=1", "d4pg.samples_per_insert=4", "total_steps=4000",
             "--space", "d4pg.min_replay_size=100,100000", "--seeds", "0", "1",
             "--max-concurrent", "2", "--scheduler", "asha", "--metric", "learner_steps",
-            "--time-attr", "env_steps", "--grace-period", "800", "--storage", str(tmp_path),
-            "--name", "four"]  # fmt: skip
+            "--time-attr", "env_steps", "--grace-period", "400", "--report-every-steps", "100",
+            "--storage", str(tmp_path), "--name", "four"]  # fmt: skip
     assert main(["sweep", *argv]) == 0
     sweep = tmp_path / "four"
     # The command main() was given, not this process's sys.argv (pytest's).
@@ -81,6 +81,8 @@ def test_four_trials_two_at_a_time_and_asha_stops_the_worse(
     assert record["command"] == ["robogym-ray", "sweep", *argv]
     results, runs = trial_results(sweep), run_summaries(sweep)
     assert len(results) == 4 and len(runs) == 4
+    for rows in results.values():  # results between windows, marked so
+        assert any(r.get("between_windows") for r in rows), rows
     for run in runs.values():  # every trial's own files under the sweep's storage
         assert Path(run["logdir"]).parent == sweep / "runs"
         assert Path(run["checkpoint"]).is_file()
@@ -93,7 +95,7 @@ def test_four_trials_two_at_a_time_and_asha_stops_the_worse(
     worse = [r for n, r in runs.items() if config[n]["d4pg"]["min_replay_size"] == 100000]
     assert len(worse) == 2 and all(r["learner_steps"] == 0 for r in worse)
     ends = [(r["ended"], r["env_steps"]) for r in worse]
-    assert any(ended == "stopped" for ended, _ in ends), ends
+    assert any(ended == "stopped" and steps < 4000 for ended, steps in ends), ends
     for run in (r for r in runs.values() if r["ended"] == "stopped"):
         # ended as a stopped run ends: final checkpoint and summary
         assert run["stopped_by"] == "scheduler" and Path(run["checkpoint"]).is_file()
@@ -110,7 +112,10 @@ def test_four_trials_two_at_a_time_and_asha_stops_the_worse(
 def test_a_sweep_goes_on_from_its_checkpoints_after_its_driver_is_killed(
     tmp_path: Path,
 ) -> None:
-    argv = [*BASE, "total_steps=1000", "checkpoint_every=100", "--seeds", "0", "1",
+    # No evaluator: the trials' results (and so their Tune checkpoints) are the ones every 100
+    # env steps, on learner steps; two processes fewer to start in each half.
+    argv = [*BASE, "total_steps=1000", "checkpoint_every=100", "evaluator=false",
+            "--report-every-steps", "100", "--metric", "learner_steps", "--seeds", "0", "1",
             "--max-concurrent", "2", "--storage", str(tmp_path), "--name", "killed",
             "--address", ray.get_runtime_context().gcs_address]  # fmt: skip
     driver = children.popen([sys.executable, "-m", "robogym_ray.cli", "sweep", *argv],

@@ -357,7 +357,9 @@ def test_a_learner_restarted_with_nothing_to_restore_ends_the_run(tmp_path: Path
 
 
 def test_a_run_continues_from_another_runs_checkpoint_and_replay(tmp_path: Path) -> None:
-    common = dict(task="pendulum", workers=1, logdir=str(tmp_path), progress=False)
+    # No evaluator: nothing here reads its rates, and each of the three runs would start one
+    # and play its final evaluation.
+    common = dict(task="pendulum", workers=1, logdir=str(tmp_path), progress=False, evaluator=False)
     small = {"min_replay_size": 256}
     first = run_training(
         TrainConfig(
