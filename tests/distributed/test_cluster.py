@@ -14,6 +14,7 @@ import shutil
 import sys
 import tempfile
 import time
+import zipfile
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -100,6 +101,19 @@ def test_ray_job_submit_runs_a_short_training(two_nodes: TwoNodes) -> None:
     assert {p.name for p in run.iterdir()} >= {"config.json", "summary.json", "checkpoints"}
     assert f"files:       {run}/" in out.stdout + out.stderr
     assert not list(Path(c.temp_dir).rglob("runs/job"))  # nothing in Ray's temporary dirs
+
+
+def test_a_jobs_upload_leaves_the_committed_results_out(tmp_path: Path) -> None:
+    """The README's `ray job submit --working-dir .` packages the clone as Ray's own packaging
+    does (the function the submit calls): without `docs/results/` (.rayignore; tens of MB no
+    job reads), with the code and the configs a job runs."""
+    from ray._private.runtime_env.packaging import create_package
+
+    package = tmp_path / "job.zip"
+    create_package(str(REPO), package, include_gitignore=True)
+    names = zipfile.ZipFile(package).namelist()
+    assert not [n for n in names if n.startswith("docs/results/")]
+    assert {"robogym_ray/cli.py", "experiments/configs/navigation.json"} <= set(names)
 
 
 def test_two_nodes_robot_servers_on_the_second(two_nodes: TwoNodes, tmp_path: Path) -> None:
