@@ -136,7 +136,7 @@ class TrainingTrial(tune.Trainable):
             "parts": self.part,
             # The metric as the last window left it, for results between a restored part's
             # windows before its first one.
-            **({self.metric: self.last[self.metric]} if self.metric in self.last else {}),
+            **self._last_metric(),
             **{k: self.last.get(k, 0) for k in COUNTS},
         }
         (Path(checkpoint_dir) / TRIAL_RECORD).write_text(json.dumps(record))
@@ -209,9 +209,12 @@ class TrainingTrial(tune.Trainable):
         """A result between windows: the counts, and the sweep's metric as the last window
         left it (the figure skips it). None while it cannot carry the metric (an eval/* one
         before the first window): Tune refuses a result without it."""
-        last = {self.metric: self.last[self.metric]} if self.metric in self.last else {}
-        metrics = self._counted(counts, {**last, BETWEEN_WINDOWS: True})
+        metrics = self._counted(counts, {**self._last_metric(), BETWEEN_WINDOWS: True})
         return self._report(metrics) if self.metric in metrics else None
+
+    def _last_metric(self) -> dict[str, Any]:
+        """The sweep's metric as the last result left it (empty when it had none)."""
+        return {self.metric: self.last[self.metric]} if self.metric in self.last else {}
 
     def _counted(self, counts: Mapping[str, float], rest: Mapping[str, Any]) -> dict[str, Any]:
         """A result: the run's counts (this part's, on top of the parts before) and ``rest``."""
