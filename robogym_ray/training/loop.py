@@ -166,11 +166,13 @@ class TrainingLoop:
         every, call = self.progress
         if self.stats.env_steps // every > self._progress_mark:
             self._progress_mark = self.stats.env_steps // every
-            # A resumed run's learner starts from its checkpoint's step, not 0, before it answers.
-            learner_steps = max(int(self.stats.learner.get("learner_steps", 0)),
-                                self.p.first_learner_step)  # fmt: skip
             call(self._rates({"wall_s": round(self._wall(), 2), "env_steps": self.stats.env_steps,
-                              "learner_steps": learner_steps}))  # fmt: skip
+                              "learner_steps": self._trained()}))  # fmt: skip
+
+    def _trained(self) -> int:
+        """The learner's step as last reported; a resumed run's learner starts from its
+        checkpoint's step, not 0, before it has answered."""
+        return max(int(self.stats.learner.get("learner_steps", 0)), self.p.first_learner_step)
 
     def _rates(self, counts: dict[str, float]) -> dict[str, float]:
         """``counts`` (wall_s, env and learner steps) with the episodes and the rates so far."""
@@ -300,7 +302,7 @@ class TrainingLoop:
             status = ray.get(self.p.learner.status.remote(), timeout=120)
         except (RayActorError, GetTimeoutError):  # dead for good: its calls keep failing
             return
-        trained = max(int(self.stats.learner.get("learner_steps", 0)), self.p.first_learner_step)
+        trained = self._trained()
         self.stats.learner_restarts.append({
             "failed_at_wall_s": None if failed_at is None else round(failed_at, 2),
             "answered_at_wall_s": round(self._wall(), 2), "node": status["node"],
