@@ -21,6 +21,7 @@ SMOKE_TRAIN: dict[str, Any] = {
     "workers": 1, "total_steps": 300, "random_steps": 100, "steps_per_call": 50,
     "weight_sync_steps": 100, "checkpoint_every": 50, "log_every_s": 1.0, "progress": False,
     "worker_cpus": 0.2, "learner_cpus": 0.3, "server_cpus": 0.1, "evaluator_cpus": 0.1,
+    "final_eval_episodes": 2,
 }  # fmt: skip
 """TrainConfig overrides of ``--smoke`` (fits the test suite's 2-CPU Ray)."""
 SMOKE_D4PG: dict[str, Any] = {

@@ -48,9 +48,12 @@ class BehaviourPolicy:
         ``act`` draws."""
         with torch.inference_mode():
             action = self.policy(torch.as_tensor(obs, dtype=torch.float32)).numpy()
+        box = (self.policy.box_center, self.policy.box_half)
+        center, half = (b.numpy().astype(np.float64) for b in box)
         if explore and self.sigma > 0:
-            action = action + self.sigma * self.rng.standard_normal(action.shape)
-        return np.clip(action, -1.0, 1.0).astype(np.float32)
+            # sigma is on the action box's own scale (the whole Box's when there is none).
+            action = action + self.sigma * half * self.rng.standard_normal(action.shape)
+        return np.clip(action, center - half, center + half).astype(np.float32)
 
 
 def to_env_action(action: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:

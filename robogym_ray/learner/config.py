@@ -96,7 +96,17 @@ class D4PGConfig:
 
     # --- exploration ----------------------------------------------------------------------
     sigma: float = 0.3
-    """Std of the Gaussian exploration noise on the [-1, 1] action scale (per actor)."""
+    """Std of the Gaussian exploration noise on the [-1, 1] action scale (per actor); with an
+    action box, on the box's own [-1, 1] scale."""
+    action_box_low: tuple[float, ...] = ()
+    """With ``action_box_high``: the part of the env's action Box the learner works in, one
+    bound per action dimension on the [-1, 1] scale that maps onto the whole Box (empty: all
+    of it). The policy's tanh spans only this part, the critic reads actions rescaled from it
+    and the workers' noise is scaled to it, so a task whose useful actions fill a small part of
+    a wide Box gets that part's resolution. The networks carry it (``networks.ActionBox``):
+    checkpoints, ``evaluate`` and ``export`` need nothing more, and the env's spaces stay."""
+    action_box_high: tuple[float, ...] = ()
+    """The upper bounds of ``action_box_low``'s box (same length, each above its low)."""
 
     # --- runtime --------------------------------------------------------------------------
     device: str = "auto"
@@ -170,6 +180,16 @@ class D4PGConfig:
                 "in [0, 1]",
             ),
             (self.sigma >= 0.0, "sigma", self.sigma, ">= 0"),
+            (
+                len(self.action_box_low) == len(self.action_box_high)
+                and all(
+                    -1.0 <= lo < hi <= 1.0
+                    for lo, hi in zip(self.action_box_low, self.action_box_high, strict=False)
+                ),
+                "action_box_low",
+                (self.action_box_low, self.action_box_high),
+                "low and high of equal length, -1 <= low < high <= 1 in each dimension",
+            ),
             (self.num_threads >= 0, "num_threads", self.num_threads, ">= 0"),
             (
                 self.replay_device in ("auto", "host", "learner"),

@@ -92,6 +92,8 @@ class D4PGLearner:
         self.critic = DistributionalCritic(
             obs_dim, act_dim, c.critic_hidden, c.num_atoms, c.layer_norm
         ).to(self.device)
+        for net in (self.policy, self.critic):
+            net.set_action_box(c.action_box_low, c.action_box_high)
         self.target_policy = copy.deepcopy(self.policy).requires_grad_(False)
         self.target_critic = copy.deepcopy(self.critic).requires_grad_(False)
         self.policy_average: Policy | None = (

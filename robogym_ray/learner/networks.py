@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Any
 
 import torch
 from torch import nn
@@ -23,21 +24,60 @@ def mlp(
     return nn.Sequential(*layers)
 
 
-class Policy(nn.Module):
-    """Deterministic policy ``obs -> tanh(...)`` with actions in [-1, 1]."""
+class ActionBox(nn.Module):
+    """A net that works in a part of the env's action Box (``D4PGConfig.action_box_low`` /
+    ``_high``): two buffers, the box's centre and half-width on the [-1, 1] scale of the whole
+    Box; the whole Box (centre 0, half-width 1) until :meth:`set_action_box`.
+
+    They are buffers, so state dicts carry them to the workers, the evaluator, checkpoints and
+    exports. Weights saved before the box existed have none: they load as the whole Box.
+    """
+
+    box_center: torch.Tensor
+    box_half: torch.Tensor
+    BOX_KEYS = ("box_center", "box_half")
+
+    def _init_box(self, act_dim: int) -> None:
+        self.register_buffer("box_center", torch.zeros(act_dim))
+        self.register_buffer("box_half", torch.ones(act_dim))
+
+    def set_action_box(self, low: Sequence[float], high: Sequence[float]) -> None:
+        """Work in ``[low, high]`` (per dimension, on the whole Box's [-1, 1] scale); empty
+        sequences keep the whole Box."""
+        if not low and not high:
+            return
+        lo, hi = (torch.as_tensor(v, dtype=torch.float32) for v in (low, high))
+        if lo.shape != self.box_center.shape or hi.shape != lo.shape:
+            raise ValueError(
+                f"an action box of {len(low)} and {len(high)} bounds for "
+                f"{self.box_center.numel()} action dimensions"
+            )
+        self.box_center.copy_((hi + lo) / 2)
+        self.box_half.copy_((hi - lo) / 2)
+
+    def load_state_dict(self, state_dict: Any, strict: bool = True, assign: bool = False) -> Any:
+        own = {k: v for k, v in self.state_dict().items() if k in self.BOX_KEYS}
+        return super().load_state_dict({**own, **state_dict}, strict, assign)
+
+
+class Policy(ActionBox):
+    """Deterministic policy ``obs -> centre + half-width * tanh(...)``: actions in [-1, 1], in
+    its action box when it has one."""
 
     def __init__(
         self, obs_dim: int, act_dim: int, hidden: Sequence[int], layer_norm: bool = False
     ) -> None:
         super().__init__()
         self.net = mlp(obs_dim, hidden, act_dim, layer_norm)
+        self._init_box(act_dim)
 
     def forward(self, obs: torch.Tensor) -> torch.Tensor:
-        return torch.tanh(self.net(obs))
+        return self.box_center + self.box_half * torch.tanh(self.net(obs))
 
 
-class DistributionalCritic(nn.Module):
-    """``(obs, action) -> logits`` over a fixed support of ``num_atoms`` atoms."""
+class DistributionalCritic(ActionBox):
+    """``(obs, action) -> logits`` over a fixed support of ``num_atoms`` atoms; the action is
+    read on its action box's own [-1, 1] scale."""
 
     def __init__(
         self,
@@ -49,6 +89,8 @@ class DistributionalCritic(nn.Module):
     ) -> None:
         super().__init__()
         self.net = mlp(obs_dim + act_dim, hidden, num_atoms, layer_norm)
+        self._init_box(act_dim)
 
     def forward(self, obs: torch.Tensor, action: torch.Tensor) -> torch.Tensor:
-        return self.net(torch.cat([obs, action], dim=-1))
+        scaled = (action - self.box_center) / self.box_half
+        return self.net(torch.cat([obs, scaled], dim=-1))

@@ -198,6 +198,11 @@ def learner_networks(
             f"d4pg: no networks of policy_hidden={quote(d4pg.policy_hidden)}, "
             f"critic_hidden={quote(d4pg.critic_hidden)}: {clip_text(str(exc), 200)}"
         ) from None
+    try:
+        for net in (policy, critic):
+            net.set_action_box(d4pg.action_box_low, d4pg.action_box_high)
+    except ValueError as exc:  # a box for another number of action dimensions
+        raise ConfigError(f"d4pg.action_box_low/high: {exc}") from None
     return policy, critic
 
 

@@ -18,7 +18,7 @@ from robogym_ray.training.run import run_training
 
 pytestmark = [pytest.mark.ray, pytest.mark.slow, pytest.mark.usefixtures("ray_cluster")]
 
-KILL_AFTER = 3
+KILL_AFTER = 2
 """Episodes the first evaluator plays before it is killed: more than a replacement that
 started its count again would report after its first call (one episode)."""
 
