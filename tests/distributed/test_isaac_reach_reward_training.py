@@ -1,29 +1,32 @@
-"""The isaac-reach-ur10-her-average experiment end to end, CI-sized: a training from its config
-file (the isaac-reach-ur10-isaac-reward preset and support, hindsight relabelling, policy
-averaging; small networks, a short replay warm-up), then ``evaluate`` of the averaged policy on
-robo-gym 2.1.0's IsaacReachUR10Sim-v0, the env its policies are scored on; and a training of it
-whose evaluator plays that env (``eval_env_id``)."""
+"""The isaac-reach-ur10-her-average-long-replay-box experiment end to end, CI-sized: a training
+from its config file (the isaac-reach-ur10-isaac-reward preset and support, hindsight
+relabelling, policy averaging, the action box; small networks and replay, a short warm-up), then
+``evaluate`` of the averaged policy on robo-gym 2.1.0's IsaacReachUR10Sim-v0, the env its
+policies are scored on; and a training of it whose evaluator plays that env (``eval_env_id``)."""
 
 from __future__ import annotations
 
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 import robogym_ray
 from robogym_ray.cli import main as cli_main
+from robogym_ray.export import load_checkpoint_policy
 from robogym_ray.learner.checkpoint import BEST_POLICY_NAME
 
 pytestmark = [pytest.mark.ray, pytest.mark.slow, pytest.mark.usefixtures("ray_cluster")]
 
 CONFIG = (
-    Path(__file__).resolve().parents[2] / "experiments/configs/isaac-reach-ur10-her-average.json"
+    Path(__file__).resolve().parents[2]
+    / "experiments/configs/isaac-reach-ur10-her-average-long-replay-box.json"
 )
 ORIGINAL = "RoboGymRay/IsaacReachUR10Sim-v0"
 # Small networks, few learner steps: the path is under test, not the learning.
 SMALL = {"policy_hidden": [32, 32], "critic_hidden": [32, 32], "min_replay_size": 100,
-         "batch_size": 16, "samples_per_insert": 2.0}  # fmt: skip
+         "batch_size": 16, "samples_per_insert": 2.0, "replay_capacity": 20_000}  # fmt: skip
 
 
 def test_a_short_training_runs_and_evaluate_scores_it_on_isaac_reach_ur10(
@@ -45,6 +48,9 @@ def test_a_short_training_runs_and_evaluate_scores_it_on_isaac_reach_ur10(
     config = json.loads((tmp_path / "smoke" / "config.json").read_text())
     assert (config["d4pg"]["v_min"], config["d4pg"]["v_max"]) == (-4.0, 1.0)
     assert config["d4pg"]["policy_average_tau"] > 0 and config["train"]["relabel_goals"] == 4
+    box = np.array([config["d4pg"]["action_box_low"], config["d4pg"]["action_box_high"]])
+    policy, _ = load_checkpoint_policy(tmp_path / "smoke" / "checkpoints" / "learner.pt")
+    np.testing.assert_allclose(policy.box_center.numpy(), box.mean(axis=0), atol=1e-6)
     # Its policy runs unchanged on robo-gym 2.1.0's env and is scored by that env's success.
     argv = [str(tmp_path / "smoke"), "--env-id", ORIGINAL, "--episodes", "2", "--max-steps", "30"]
     assert cli_main(["evaluate", *argv]) == 0
