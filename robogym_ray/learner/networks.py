@@ -55,9 +55,12 @@ class ActionBox(nn.Module):
         self.box_center.copy_((hi + lo) / 2)
         self.box_half.copy_((hi - lo) / 2)
 
-    def load_state_dict(self, state_dict: Any, strict: bool = True, assign: bool = False) -> Any:
-        own = {k: v for k, v in self.state_dict().items() if k in self.BOX_KEYS}
-        return super().load_state_dict({**own, **state_dict}, strict, assign)
+    def _load_from_state_dict(self, state_dict: Any, prefix: str, *args: Any) -> None:
+        # torch hands each module a copy of the state dict: filling it in here changes no
+        # caller's dict, and works for a net loaded inside another module too.
+        for name in self.BOX_KEYS:
+            state_dict.setdefault(prefix + name, getattr(self, name))
+        super()._load_from_state_dict(state_dict, prefix, *args)
 
 
 class Policy(ActionBox):
