@@ -33,9 +33,16 @@ class BehaviourPolicy:
         self.sigma = sigma
         self.act_dim = act_dim
         self.rng = np.random.default_rng(seed)
+        self._read_box()
 
     def set_weights(self, weights: dict[str, np.ndarray]) -> None:
         self.policy.load_state_dict({k: torch.as_tensor(v) for k, v in weights.items()})
+        self._read_box()
+
+    def _read_box(self) -> None:
+        # The box arrives with the weights only; read once here, not on every step.
+        self.center = self.policy.box_center.numpy().astype(np.float64)
+        self.half = self.policy.box_half.numpy().astype(np.float64)
 
     def act(self, obs: np.ndarray, explore: bool) -> np.ndarray:
         """Policy action for one observation, plus N(0, sigma) noise when exploring, clipped."""
@@ -48,12 +55,10 @@ class BehaviourPolicy:
         ``act`` draws."""
         with torch.inference_mode():
             action = self.policy(torch.as_tensor(obs, dtype=torch.float32)).numpy()
-        box = (self.policy.box_center, self.policy.box_half)
-        center, half = (b.numpy().astype(np.float64) for b in box)
         if explore and self.sigma > 0:
             # sigma is on the action box's own scale (the whole Box's when there is none).
-            action = action + self.sigma * half * self.rng.standard_normal(action.shape)
-        return np.clip(action, center - half, center + half).astype(np.float32)
+            action = action + self.sigma * self.half * self.rng.standard_normal(action.shape)
+        return np.clip(action, self.center - self.half, self.center + self.half).astype(np.float32)
 
 
 def to_env_action(action: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
