@@ -12,8 +12,8 @@ import signal
 import socket
 import subprocess
 import sys
-import time
 from collections.abc import Iterator
+from pathlib import Path
 
 import grpc
 import numpy as np
@@ -107,13 +107,15 @@ def test_a_server_manager_on_a_port_a_plain_socket_holds_is_refused(plain_listen
         sup.shutdown()
 
 
-def run_cli(*args: str, timeout_s: float = 60.0) -> subprocess.CompletedProcess:
+def run_cli(
+    *args: str, timeout_s: float = 60.0, env: dict[str, str] | None = None
+) -> subprocess.CompletedProcess:
     return children.run(
         [sys.executable, "-m", "robogym_ray.cli", *args],
         capture_output=True,
         text=True,
         timeout=timeout_s,
-        env={**os.environ, "RAY_ADDRESS": ""},
+        env={**os.environ, "RAY_ADDRESS": "", **(env or {})},
     )
 
 
@@ -141,12 +143,15 @@ def test_serve_cli_on_a_port_a_plain_socket_holds_exits_2_with_one_line(
 
 
 def test_manager_cli_on_a_held_port_exits_2_with_one_line_before_starting_ray(
-    plain_listener: int,
+    plain_listener: int, tmp_path: Path
 ) -> None:
-    started = time.monotonic()
-    out = run_cli("manager", "--port", str(plain_listener), "--num-cpus", "1")
+    # Refused up front, not after a Ray start: a Ray started here would have made its session
+    # folder under RAY_TMPDIR (Ray's own setting for where its files go).
+    ray_files = tmp_path / "ray-tmp"
+    out = run_cli("manager", "--port", str(plain_listener), "--num-cpus", "1",
+                  env={"RAY_TMPDIR": str(ray_files)})  # fmt: skip
     assert_one_line_naming(out, plain_listener)
-    assert time.monotonic() - started < 20  # refused up front, not after a Ray start
+    assert not ray_files.exists(), sorted(p.name for p in ray_files.rglob("*"))[:10]
 
 
 def test_manager_cli_on_a_port_our_grpc_server_holds_exits_2_with_one_line() -> None:
