@@ -235,7 +235,7 @@ def test_node_losses_on_a_cluster_of_separate_disks(temp_dir: str, tmp_path: Pat
     assert summary["faults/worker_replacements"] >= len(lost_workers) + len(moved_workers)
     assert "Unhandled error" not in err and "Traceback" not in err, err[-4000:]
     assert f"files:       {shared / RUN}/" in stdout
-    # What the loss cost (docs/architecture.md "Clusters"; run with -n 0 -s to see it): the kill's
+    # What the loss cost (docs/architecture.md "Clusters"; run with -s to see it): the kill's
     # time on the run's clock is estimated from the end (the summary's wall_s, ~1 s late).
     (restart,) = summary["learner_restarts"]
     cost = {"killed_at_wall_s": round(summary["wall_s"] - (ended - killed), 1), **restart,
