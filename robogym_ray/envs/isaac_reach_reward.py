@@ -92,6 +92,10 @@ class IsaacLabReachMDP(PoseCommands):
     command the way ``_evaluate`` scores the one in force.
     """
 
+    rotation_tanh_weight = 0.0
+    """A rotation term shaped like the position's tanh (per second; 0: Isaac Lab's reward)."""
+    rotation_tanh_std = 0.25
+    """Its std (rad)."""
     max_episode_steps = 360  # 12 s at 30 Hz: Isaac Lab's dt of 1/60 s x decimation 2
     # A new command every 4 s: PoseCommands' resampling_time default, Isaac Lab's.
     reward_info_keys = ("effort",)
@@ -115,8 +119,13 @@ class IsaacLabReachMDP(PoseCommands):
             for r in (achieved, desired)
         )
         position, rotation = pose_errors(achieved[:, :3], here, desired[:, :3], there)
-        per_second = tracking_per_second(position, rotation) + np.asarray(info["effort"])
+        per_second = self._tracking(position, rotation) + np.asarray(info["effort"])
         return per_second / self.action_rate
+
+    def _tracking(self, position: Any, rotation: Any) -> Any:
+        """``tracking_per_second`` plus this task's rotation tanh term (none by default)."""
+        shaped = 1.0 - np.tanh(np.asarray(rotation, np.float64) / self.rotation_tanh_std)
+        return tracking_per_second(position, rotation) + self.rotation_tanh_weight * shaped
 
     def _evaluate(
         self, msg: pb.State, obs: np.ndarray, action: np.ndarray
@@ -130,7 +139,7 @@ class IsaacLabReachMDP(PoseCommands):
         position, rotation = pose_error(xyz, turn, self.scored_pose)
         change = np.asarray(action, dtype=np.float64) - self.prev_action
         effort = effort_per_second(change, self.velocities(msg))
-        reward = float(tracking_per_second(position, rotation)) + effort
+        reward = float(self._tracking(position, rotation)) + effort
         reached = turn.as_quat(canonical=self.pose_cfg.ee_rotation_quat_unique)
         info: StepInfo = {
             **self._info(msg),

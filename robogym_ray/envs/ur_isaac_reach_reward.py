@@ -67,6 +67,18 @@ class IsaacReachIsaacRewardUR(IsaacLabReachMDP, IsaacReachUR):
     }
 
 
+class IsaacReachRotationTanhUR(IsaacReachIsaacRewardUR):
+    """``IsaacReachIsaacRewardUR`` with one more reward term, ``+0.1 (1 - tanh(theta / 0.25))``
+    per second: Isaac Lab's position tanh carried over to the rotation, its std scaled by the
+    ratio of robo-gym's success tolerances (0.05 rad / 0.02 m x 0.1 m). Isaac Lab's reward prices
+    0.05 rad like 0.4 cm, robo-gym's success like 2 cm; with this term both cost ~0.024 per
+    second near the command. Spaces, commands, ends and resets are ``IsaacReachIsaacRewardUR``'s.
+    """
+
+    rotation_tanh_weight = 0.1
+    rotation_tanh_std = 0.25
+
+
 def return_range(discount: float = 0.99) -> tuple[float, float]:
     """The bounds of a discounted return of ``IsaacReachIsaacRewardUR10Sim-v0`` (episodes end
     only by the time limit, so the horizon is 1 / (1 - discount)), from its action bounds and

@@ -21,12 +21,15 @@ SIM, ROB = (
     "RoboGymRay/IsaacReachIsaacRewardUR10Rob-v0",
 )
 ORIGINAL = "RoboGymRay/IsaacReachUR10Sim-v0"
+ROTATION_TANH = "RoboGymRay/IsaacReachRotationTanhUR10Sim-v0"
 DEFAULT = np.array([0.0, -1.712, 1.712, 0.0, 0.0, 0.0])
 
 
-def isaac_lab_reward(position: float, rotation: float, change, velocity) -> float:
-    """Isaac Lab's five reach terms times their weights and the step dt of 2 x 1/60 s."""
+def isaac_lab_reward(position: float, rotation: float, change, velocity, tanh_weight=0.0) -> float:
+    """Isaac Lab's five reach terms times their weights and the step dt of 2 x 1/60 s; with
+    ``tanh_weight``, the rotation variant's sixth, ``tanh_weight (1 - tanh(rotation / 0.25))``."""
     terms = [
+        tanh_weight * (1.0 - math.tanh(rotation / 0.25)),
         -0.2 * position,
         0.1 * (1.0 - math.tanh(position / 0.1)),
         -0.1 * rotation,
@@ -76,8 +79,11 @@ def test_ids_spaces_server_and_isaac_terms_are_isaac_reach_ur10s() -> None:
         original.close()
 
 
-def test_a_step_scores_tool1_against_the_command_by_isaac_labs_formula() -> None:
-    env = gym.make(SIM, rs_state_to_info=True)
+@pytest.mark.parametrize(("env_id", "tanh_weight"), [(SIM, 0.0), (ROTATION_TANH, 0.1)])
+def test_a_step_scores_tool1_against_the_command_by_isaac_labs_formula(
+    env_id: str, tanh_weight: float
+) -> None:
+    env = gym.make(env_id, rs_state_to_info=True)
     try:
         env.reset(seed=5, options={"joint_positions": DEFAULT})
         task = env.unwrapped
@@ -96,16 +102,18 @@ def test_a_step_scores_tool1_against_the_command_by_isaac_labs_formula() -> None
             position = float(np.linalg.norm(here - goal[:3]))
             rotation = angle(quat_here, goal[3:])
             velocity = [sd[k] for k in task.velocity_keys]
-            expected = isaac_lab_reward(position, rotation, action - previous, velocity)
+            change = action - previous
+            expected = isaac_lab_reward(position, rotation, change, velocity, tanh_weight)
             assert reward == pytest.approx(expected, abs=1e-6)
             assert info["dist_coord"] == pytest.approx(position, abs=1e-6)
             assert info["dist_rot"] == pytest.approx(rotation, abs=1e-5)
             assert np.abs(velocity).max() > 0.01 and not (terminated or truncated)
             previous = action.astype(np.float64)
-        # On the command, the arm still, the action unchanged: the top reward 0.1 x dt.
+        # On the command, the arm still, the action unchanged: the top reward, the tanh terms.
         env.reset(seed=5, options={"joint_positions": DEFAULT, "ee_target_pose": [*pos, *quat]})
         _, reward, *_ = env.step(np.zeros(6, np.float32))
-        assert 0.1 / 30 - 1e-6 < reward <= 0.1 / 30
+        top = (0.1 + tanh_weight) / 30
+        assert top - 1e-6 < reward <= top
     finally:
         env.close()
 
