@@ -7,52 +7,79 @@ signal (``prctl(PR_SET_PDEATHSIG)``), set in the child before it runs its progra
 kernel send the child a signal when its parent goes, however it goes. SIGTERM by default: our
 commands, and ``ray start --block``, stop what they started on it.
 
+The signal is set by a few lines of Python that the child runs first and that then ``exec``
+the program (same pid), not by a ``preexec_fn``: a ``preexec_fn`` makes ``subprocess`` fork
+instead of vfork, and a fork runs grpcio's fork handlers, which restart its poller thread in
+the child; ``close_fds`` then closes that thread's epoll descriptor before ``exec``, and the
+child aborts on ``epoll_wait error: Bad file descriptor`` (grpc/grpc#43055, grpcio 1.80 and
+later). Every process of ours that starts children also talks gRPC.
+
 The signal follows the *thread* that started the child: start children from a thread that
 lives as long as they should (the main thread). Elsewhere than Linux this does nothing.
 """
 
 from __future__ import annotations
 
-import ctypes
 import os
+import shutil
 import signal
 import subprocess
 import sys
-from collections.abc import Callable
+from collections.abc import Sequence
 from typing import Any
 
 PR_SET_PDEATHSIG = 1
 """``prctl`` option from ``<linux/prctl.h>``."""
 
-# Looked up here, in the parent: loading a library in a child forked from a threaded process
-# can deadlock on a lock another thread held at the fork.
-_PRCTL = ctypes.CDLL(None, use_errno=True).prctl if sys.platform.startswith("linux") else None
+# argv: parent pid, signal, program, its arguments. If the parent went before prctl took effect
+# the child is now some other process's, and signals itself at once.
+_ARM_AND_EXEC = (
+    "import ctypes, os, sys\n"
+    "parent, sig = int(sys.argv[1]), int(sys.argv[2])\n"
+    f"ctypes.CDLL(None, use_errno=True).prctl({PR_SET_PDEATHSIG}, sig, 0, 0, 0)\n"
+    "if os.getppid() != parent:\n"
+    "    os.kill(os.getpid(), sig)\n"
+    "os.execv(sys.argv[3], sys.argv[4:])\n"
+)
 
 
-def die_with_parent(sig: int = signal.SIGTERM) -> Callable[[], None]:
-    """A ``preexec_fn`` for ``subprocess``: the child gets ``sig`` when the calling thread's
-    process (the parent) ends; one that ended before the child could ask gets it at once."""
-    parent = os.getpid()
+def _armed(args: Sequence[Any], sig: int, kwargs: dict[str, Any]) -> list[str]:
+    """``args`` behind the arming lines. The program is looked up here, on the child's PATH or
+    in its ``cwd``, so that a missing one raises FileNotFoundError in the parent, as
+    ``subprocess`` does."""
+    if isinstance(args, (str, bytes)) or not args or kwargs.get("shell") or "executable" in kwargs:
+        raise TypeError(f"children take an argument list, no shell or executable: {args!r}")
+    argv = [os.fsdecode(a) for a in args]
+    if os.sep in argv[0]:
+        program: str | None = argv[0]
+        found = os.path.join(os.fsdecode(kwargs.get("cwd") or "."), argv[0])
+    else:
+        path = os.pathsep.join(os.get_exec_path(kwargs.get("env")))
+        program = found = shutil.which(argv[0], path=path)
+    if program is None or found is None or not os.access(found, os.X_OK):
+        raise FileNotFoundError(f"no program {argv[0]!r} on the child's PATH or in its cwd")
+    # -I -S: no site, no PYTHON* variables; the program gets the environment unchanged.
+    return [sys.executable, "-I", "-S", "-c", _ARM_AND_EXEC, str(os.getpid()), str(sig),
+            program, *argv]  # fmt: skip
 
-    def arm() -> None:  # runs in the child, between fork and exec
-        if _PRCTL is None:
-            return
-        _PRCTL(PR_SET_PDEATHSIG, int(sig), 0, 0, 0)
-        if os.getppid() != parent:  # the parent went before the line above took effect
-            os.kill(os.getpid(), sig)
 
-    return arm
+def _linux() -> bool:
+    return sys.platform.startswith("linux")
 
 
 def popen(args: Any, *, death_signal: int = signal.SIGTERM, **kwargs: Any) -> subprocess.Popen:
-    """``subprocess.Popen(args, **kwargs)`` whose child ends with this process
-    (``die_with_parent``)."""
-    return subprocess.Popen(args, preexec_fn=die_with_parent(death_signal), **kwargs)
+    """``subprocess.Popen(args, **kwargs)`` (an argument list) whose child ends with this
+    process: it gets ``death_signal`` when the calling thread's process ends."""
+    if _linux():
+        args = _armed(args, int(death_signal), kwargs)
+    return subprocess.Popen(args, **kwargs)
 
 
 def run(
     args: Any, *, death_signal: int = signal.SIGTERM, **kwargs: Any
 ) -> subprocess.CompletedProcess:
-    """``subprocess.run(args, **kwargs)`` whose child ends with this process
-    (``die_with_parent``)."""
-    return subprocess.run(args, preexec_fn=die_with_parent(death_signal), **kwargs)
+    """``subprocess.run(args, **kwargs)`` (an argument list) whose child ends with this process
+    (as ``popen``)."""
+    if _linux():
+        args = _armed(args, int(death_signal), kwargs)
+    return subprocess.run(args, **kwargs)

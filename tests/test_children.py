@@ -56,3 +56,42 @@ def test_a_child_ends_with_its_parent(stop: signal.Signals) -> None:
             parent.wait()
         if child and not gone(child):
             os.kill(child, signal.SIGKILL)
+
+
+def test_children_of_a_process_with_live_grpc_calls_all_start() -> None:
+    """grpc/grpc#43055: a child forked (``preexec_fn``) while this process has gRPC calls in
+    flight could abort before its ``exec`` (``epoll_wait error: Bad file descriptor``): robo-gym's
+    client in the compat tests died so once. 100 children, started beside a thread that keeps
+    calling a real gRPC server on 127.0.0.1, must all run their program."""
+    import threading
+    from concurrent import futures
+
+    import grpc
+
+    from robogym_ray import children
+
+    echo = grpc.unary_unary_rpc_method_handler(lambda request, context: request)
+    server = grpc.server(futures.ThreadPoolExecutor(max_workers=4))
+    server.add_generic_rpc_handlers([grpc.method_handlers_generic_handler("t.Echo", {"Do": echo})])
+    port = server.add_insecure_port("127.0.0.1:0")
+    server.start()
+    channel = grpc.insecure_channel(f"127.0.0.1:{port}")
+    call = channel.unary_unary("/t.Echo/Do")
+    stop, answered = threading.Event(), []
+
+    def keep_calling() -> None:
+        while not stop.is_set():
+            answered.append(call(b"x", timeout=30) == b"x")
+
+    caller = threading.Thread(target=keep_calling)
+    caller.start()
+    try:
+        ran = [children.run(["true"], capture_output=True, timeout=60) for _ in range(100)]
+    finally:
+        stop.set()
+        caller.join()
+        channel.close()
+        server.stop(grace=None)
+    failed = [(r.returncode, r.stderr[-300:]) for r in ran if r.returncode != 0]
+    assert failed == [], failed
+    assert answered and all(answered)

@@ -30,30 +30,38 @@ MIR = "roslaunch mir100_robot_server sim_robot_server.launch world_name:=empty_w
 
 
 class CountingSpawner(InProcessSpawner):
-    """In-process servers, counting how many were started; ``delay_s`` makes starts slow (a
-    loaded machine)."""
+    """In-process servers, counting how many were started; a start waits for ``gate`` to be
+    set (a start that takes as long as the test wants; set by default)."""
 
-    def __init__(self, delay_s: float = 0.0) -> None:
+    def __init__(self) -> None:
         self.spawned = 0
-        self.delay_s = delay_s
+        self.gate = threading.Event()
+        self.gate.set()
 
     def spawn(self, spec: ServerSpec) -> SpawnedServer:
         self.spawned += 1
-        time.sleep(self.delay_s)
+        assert self.gate.wait(timeout=300), "the test never let this start go"
         return super().spawn(spec)
+
+
+def wait_for(condition: Callable[[], bool], what: str) -> None:
+    """Until ``condition()``; a hang guard of 90 s, not a bound on speed."""
+    deadline = time.monotonic() + 90
+    while not condition():
+        assert time.monotonic() < deadline, f"no {what} in 90 s"
+        time.sleep(0.02)
 
 
 @pytest.fixture
 def make_manager() -> Iterator[Callable[..., tuple[Any, CountingSpawner, Supervisor]]]:
-    """``make_manager(limits, config, delay_s)`` -> (stub, spawner, supervisor) on a free port."""
+    """``make_manager(limits, config)`` -> (stub, spawner, supervisor) on a free port."""
     cleanup: list[Callable[[], None]] = []
 
     def make(
         limits: ManagerLimits | None = None,
         config: SupervisorConfig | None = None,
-        delay_s: float = 0.0,
     ) -> tuple[Any, CountingSpawner, Supervisor]:
-        spawner = CountingSpawner(delay_s)
+        spawner = CountingSpawner()
         sup = Supervisor(config or SupervisorConfig(probe_interval_s=0), spawner)
         server, port = serve_manager(sup, "127.0.0.1", 0, limits=limits)
         channel = grpc.insecure_channel(f"127.0.0.1:{port}")
@@ -112,55 +120,66 @@ def test_kill_replies_fit_robo_gym_s_client(manager: tuple[Any, CountingSpawner]
     assert "\n" not in never.info
 
 
-def timed(call: Callable[[], Any]) -> tuple[Any, float]:
-    began = time.monotonic()
-    return call(), time.monotonic() - began
-
-
 def test_a_full_manager_refuses_at_once_and_serves_again_after_a_kill(
     make_manager: Callable[..., Any],
 ) -> None:
-    stub, spawner, _ = make_manager(ManagerLimits(max_servers=2))
-    ports = [stub.StartNewServer(sm.RobotServer(cmd=MIR), timeout=60).port for _ in range(2)]
-    assert all(ports)
-    reply, took = timed(lambda: stub.StartNewServer(sm.RobotServer(cmd=MIR), timeout=60))
-    assert not reply.success and "full" in reply.info and "max_servers 2" in reply.info
-    assert took < 1.0 and spawner.spawned == 2
-    assert stub.KillServer(sm.RobotServer(port=ports[0]), timeout=30).success
+    # One server running and a second start held in the only slot: full. "At once" is counted,
+    # not timed: the refusal comes while the held start still holds the slot, and a refusal
+    # that waited for the slot (start_wait_s 600) would outlive its call's 60-s deadline.
+    limits = ManagerLimits(max_servers=2, max_concurrent_starts=1, start_wait_s=600.0)
+    stub, spawner, _ = make_manager(limits)
+    first = stub.StartNewServer(sm.RobotServer(cmd=MIR), timeout=60)
+    assert first.success, first.info
+    spawner.gate.clear()
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        held = pool.submit(stub.StartNewServer, sm.RobotServer(cmd=MIR), timeout=300)
+        wait_for(lambda: spawner.spawned == 2, "second start")
+        reply = stub.StartNewServer(sm.RobotServer(cmd=MIR), timeout=60)
+        assert not reply.success and "full" in reply.info and "max_servers 2" in reply.info
+        assert "1 robot servers running and 1 starting" in reply.info
+        assert not held.done() and spawner.spawned == 2
+        spawner.gate.set()
+        assert held.result().success
+    assert stub.KillServer(sm.RobotServer(port=first.port), timeout=30).success
     assert stub.StartNewServer(sm.RobotServer(cmd=MIR), timeout=60).success
 
 
 def test_verify_connection_answers_while_starts_crowd_the_manager(
     make_manager: Callable[..., Any],
 ) -> None:
-    # 24 concurrent starts of 1 s each, more than gRPC threads: each is answered within its
-    # wait plus one start (served or "busy"), and VerifyConnection stays fast throughout.
+    # 24 concurrent starts, more than gRPC threads, while the two in the start slots are held:
+    # the 4 that may wait are refused "busy" after their 1-s wait, the other 18 at once, and
+    # VerifyConnection is answered throughout, all before either held start is let go (counted,
+    # not timed: a call that waited for a start would wait for ever).
     limits = ManagerLimits(max_concurrent_starts=2, max_waiting_starts=4, start_wait_s=1.0)
-    stub, _, _ = make_manager(limits, delay_s=1.0)
-    done = threading.Event()
-    verify_times: list[float] = []
+    stub, spawner, _ = make_manager(limits)
+    spawner.gate.clear()
+    verified: list[bool] = []
 
     def verify_loop() -> None:
-        while not done.is_set():
-            alive, took = timed(lambda: stub.VerifyConnection(sm.Empty(), timeout=20).alive)
-            assert alive
-            verify_times.append(took)
+        while not spawner.gate.is_set():
+            verified.append(stub.VerifyConnection(sm.Empty(), timeout=20).alive)
             time.sleep(0.05)
 
     verifier = threading.Thread(target=verify_loop)
-    verifier.start()
-    try:
-        with ThreadPoolExecutor(max_workers=24) as pool:
-            calls = [lambda: stub.StartNewServer(sm.RobotServer(cmd=MIR), timeout=60)] * 24
-            replies = list(pool.map(timed, calls))
-    finally:
-        done.set()
-        verifier.join()
-    served = [r for r, _ in replies if r.success]
-    busy = [r for r, _ in replies if not r.success]
-    assert served and busy and all("busy" in r.info for r in busy)
-    assert max(took for _, took in replies) < 1.0 + 1.0 + 1.5  # wait + one start + slack
-    assert verify_times and max(verify_times) < 0.5
+    with ThreadPoolExecutor(max_workers=24) as pool:
+        calls = [
+            pool.submit(stub.StartNewServer, sm.RobotServer(cmd=MIR), timeout=300)
+            for _ in range(24)
+        ]
+        verifier.start()
+        try:
+            wait_for(lambda: sum(call.done() for call in calls) == 22, "22 replies")
+            refused = [call.result() for call in calls if call.done()]
+            assert all(not r.success and "busy" in r.info for r in refused), refused
+            assert spawner.spawned == 2
+            assert stub.VerifyConnection(sm.Empty(), timeout=20).alive  # both starts still held
+        finally:
+            spawner.gate.set()
+            verifier.join()
+        served = [call.result() for call in calls if call.result().success]
+    assert len(served) == 2 and spawner.spawned == 2
+    assert verified and all(verified)
 
 
 def test_idle_servers_are_stopped_and_counted_busy_ones_kept(

@@ -8,7 +8,6 @@ accepted, a ``triangle_wave`` of 1e-5 Hz precomputed ~670 MB, an ``action_cycle_
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Iterator
 
 import grpc
@@ -18,6 +17,7 @@ import pytest
 from robogym_ray.errors import ConfigError
 from robogym_ray.protocol import robot_server_pb2 as pb
 from robogym_ray.protocol import robot_server_pb2_grpc as pb_grpc
+from robogym_ray.robots import objects
 from robogym_ray.robots.server import ERROR_METADATA_KEY, RobotServerHandle, start_robot_server
 
 FLOAT32_MAX = 3.4e38
@@ -128,15 +128,28 @@ ABC.update(hold_a=1.0, hold_b=1.0, hold_c=1.0, n_sampling_points_ab=10, n_sampli
     ],
 )
 def test_ur_set_state_refuses_unbounded_object_parameters(
-    ur10: RobotServerHandle, function: str, params: dict, field: str, allowed: str
+    ur10: RobotServerHandle,
+    monkeypatch: pytest.MonkeyPatch,
+    function: str,
+    params: dict,
+    field: str,
+    allowed: str,
 ) -> None:
     stub = stub_for(ur10.address)
     assert set_state(stub, ur_state("fixed_position", x=0.5, y=0.3, z=0.6)) == (True, "")
     before = stub.GetState(pb.Empty(), timeout=5)
-    start = time.monotonic()
+    # The server runs in this process: count the calls of the function's real sampler.
+    names, sampler = objects.FUNCTIONS[function]
+    sampled: list[dict] = []
+
+    def counted(p: dict, rng: np.random.Generator) -> np.ndarray:
+        sampled.append(p)
+        return sampler(p, rng)
+
+    monkeypatch.setitem(objects.FUNCTIONS, function, (names, counted))
     ok, error = set_state(stub, ur_state(function, q=(0.5, -2.0, 1.0, -1.0, -1.0, 0.5), **params))
-    # Refused before any trajectory is precomputed (1e-5 Hz took 3.1 s and ~670 MB).
-    assert time.monotonic() - start < 1.0
+    # Refused before any trajectory is sampled (1e-5 Hz took 3.1 s and ~670 MB).
+    assert sampled == []
     assert not ok and field in error and allowed in error, error
     after = stub.GetState(pb.Empty(), timeout=5)
     assert dict(after.state_dict) == dict(before.state_dict)  # joints and object untouched

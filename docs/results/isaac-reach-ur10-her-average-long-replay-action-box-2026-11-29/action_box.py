@@ -23,7 +23,9 @@ SCORED = Path(__file__).resolve().parents[1] / "isaac-reach-ur10-rotation-by-yaw
 
 space = gym.make("RoboGymRay/IsaacReachUR10Sim-v0").action_space
 default = np.asarray(IsaacReachUR.default_joints)
-joints = np.array([e["joints"] for f in sorted(SCORED.glob("*.json")) for e in json.loads(f.read_text())])
+joints = np.array(
+    [e["joints"] for f in sorted(SCORED.glob("*.json")) for e in json.loads(f.read_text())]
+)
 reach = np.abs(joints - default).max(axis=0)
 travel = np.ceil(reach / (np.pi / 2)) * np.pi / 2
 low, high = np.maximum(-travel / SCALE, space.low), np.minimum(travel / SCALE, space.high)
