@@ -32,9 +32,13 @@ PR_SET_PDEATHSIG = 1
 """``prctl`` option from ``<linux/prctl.h>``."""
 
 # argv: parent pid, signal, program, its arguments. If the parent went before prctl took effect
-# the child is now some other process's, and signals itself at once.
+# the child is now some other process's, and signals itself at once. Python ignores SIGPIPE and
+# SIGXFSZ at start and exec keeps what is ignored: the program gets them back at their default,
+# as subprocess's restore_signals gives them.
 _ARM_AND_EXEC = (
-    "import ctypes, os, sys\n"
+    "import ctypes, os, signal, sys\n"
+    "for name in ('SIGPIPE', 'SIGXFSZ'):\n"
+    "    signal.signal(getattr(signal, name), signal.SIG_DFL)\n"
     "parent, sig = int(sys.argv[1]), int(sys.argv[2])\n"
     f"ctypes.CDLL(None, use_errno=True).prctl({PR_SET_PDEATHSIG}, sig, 0, 0, 0)\n"
     "if os.getppid() != parent:\n"

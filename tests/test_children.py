@@ -95,3 +95,15 @@ def test_children_of_a_process_with_live_grpc_calls_all_start() -> None:
     failed = [(r.returncode, r.stderr[-300:]) for r in ran if r.returncode != 0]
     assert failed == [], failed
     assert answered and all(answered)
+
+
+def test_a_childs_program_ignores_the_signals_a_subprocess_child_ignores() -> None:
+    """The arming lines run in Python, which ignores SIGPIPE and SIGXFSZ; the program they
+    exec gets them back, as ``subprocess`` gives them (``restore_signals``)."""
+    from robogym_ray import children
+
+    probe = ["grep", "-E", "^Sig(Ign|Blk)", "/proc/self/status"]
+    ours = children.run(probe, capture_output=True, text=True, timeout=60)
+    theirs = subprocess.run(probe, capture_output=True, text=True, timeout=60)
+    assert ours.returncode == theirs.returncode == 0
+    assert ours.stdout == theirs.stdout

@@ -79,15 +79,19 @@ class IsaacReachRotationTanhUR(IsaacReachIsaacRewardUR):
     rotation_tanh_std = 0.25
 
 
-def return_range(discount: float = 0.99) -> tuple[float, float]:
+def return_range(
+    discount: float = 0.99, task: type[IsaacLabReachMDP] = IsaacReachIsaacRewardUR
+) -> tuple[float, float]:
     """The bounds of a discounted return of ``IsaacReachIsaacRewardUR10Sim-v0`` (episodes end
     only by the time limit, so the horizon is 1 / (1 - discount)), from its action bounds and
-    the UR10's speed limits at the env's 0.2 of them, at 30 Hz."""
+    the UR10's speed limits at the env's 0.2 of them, at 30 Hz; ``task``: the variant, whose
+    rotation tanh term (>= 0, its weight at best) raises the best only."""
     default = np.asarray(IsaacReachUR.default_joints)
     scale = 0.5  # isaac_scale's default
     low, high = (-JOINT_MAX - default) / scale, (JOINT_MAX - default) / scale
     speeds = IsaacReachUR.velocity_scale * np.asarray(UR_MODELS["ur10"].max_velocity)
     rate = IsaacReachUR.action_rate
     worst, best = step_reward_range(low, high, speeds, MAX_POSITION_ERROR, rate)
+    best += task.rotation_tanh_weight / rate
     horizon = 1.0 / (1.0 - discount)
     return worst * horizon, best * horizon

@@ -69,6 +69,15 @@ _DEPLOY_REACH = {**_POSITIONING, **_support(ur_deploy_reach.return_range)}
 # +-25 bounds) - 1e-4 x 1.93 (every joint at 0.2 of its speed limit)) / 30 = -0.0389 at worst,
 # 0.1 / 30 = 0.0033 at best (on the command, still), times the horizon of 100 steps.
 _ISAAC_REACH_ISAAC_REWARD = {**_POSITIONING, **_support(ur_isaac_reach_reward.return_range)}
+# [-4, 1] too: the rotation tanh term adds 0.1 / 30 to the best step, 0.0067 x 100 = 0.67.
+_ISAAC_REACH_ROTATION_TANH = {
+    **_POSITIONING,
+    **_support(
+        lambda d: ur_isaac_reach_reward.return_range(
+            d, ur_isaac_reach_reward.IsaacReachRotationTanhUR
+        )
+    ),
+}
 _NAVIGATION = {"v_min": -300.0, "v_max": 450.0, "layer_norm": True, "min_replay_size": 500}
 
 TASKS: dict[str, TaskPreset] = {
@@ -124,6 +133,14 @@ TASKS: dict[str, TaskPreset] = {
         "RoboGymRay/IsaacReachIsaacRewardUR10Sim-v0",
         _ISAAC_REACH_ISAAC_REWARD,
         "isaac-reach-ur10 on Isaac Lab's reward and 4-s commands; a goal task (--relabel-goals)",
+    ),
+    # The same with one more term, +0.1 (1 - tanh(theta / 0.25)) per second: Isaac Lab's position
+    # tanh carried over to the rotation, so that 2.1.0's success tolerances (0.02 m, 0.05 rad)
+    # cost alike; Isaac Lab's reward prices 0.05 rad like 0.4 cm (results-log.md, 2026-11-29).
+    "isaac-reach-ur10-rotation-tanh": TaskPreset(
+        "RoboGymRay/IsaacReachRotationTanhUR10Sim-v0",
+        _ISAAC_REACH_ROTATION_TANH,
+        "isaac-reach-ur10-isaac-reward with the rotation priced like 2.1.0's success; a goal task",
     ),
     # Isaac Lab 3's deploy reach (UR10e): its keypoint reward times 1/60 s per step, plus the
     # action and action-rate L2 terms; episodes end only by the time limit, so the support is the

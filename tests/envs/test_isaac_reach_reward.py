@@ -194,3 +194,27 @@ def test_bang_bang_steps_stay_inside_the_reward_range_and_the_presets_support() 
     assert (preset.d4pg["v_min"], preset.d4pg["v_max"]) == (-4.0, 1.0)
     assert preset.d4pg["v_min"] <= 100 * worst < preset.d4pg["v_min"] + 1
     assert 100 * best <= preset.d4pg["v_max"] < 100 * best + 1
+
+
+def test_the_rotation_tanh_variants_range_and_support() -> None:
+    from robogym_ray.envs.ur_isaac_reach_reward import IsaacReachRotationTanhUR, return_range
+    from robogym_ray.training.presets import TASKS
+
+    (worst, best), (tanh_worst, tanh_best) = (
+        return_range(),
+        return_range(0.99, IsaacReachRotationTanhUR),
+    )
+    # The term is >= 0: the worst stays, the best gains its 0.1 a second over the horizon.
+    assert tanh_worst == worst and tanh_best == pytest.approx(best + 0.1 / 30 * 100)
+    env = gym.make(ROTATION_TANH)
+    try:
+        env.reset(seed=2)
+        low, high = env.action_space.low, env.action_space.high
+        rewards = [env.step(high if t % 2 else low)[1] for t in range(12)]
+        assert all(tanh_worst / 100 <= r <= tanh_best / 100 for r in rewards), rewards
+    finally:
+        env.close()
+    preset = TASKS["isaac-reach-ur10-rotation-tanh"]
+    assert preset.env_id == ROTATION_TANH
+    assert (preset.d4pg["v_min"], preset.d4pg["v_max"]) == (-4.0, 1.0)
+    assert tanh_best <= preset.d4pg["v_max"] < tanh_best + 1

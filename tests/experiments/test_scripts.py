@@ -122,6 +122,18 @@ def test_isaac_reach_ur10_on_isaac_labs_reward_is_the_positioning_recipe_with_it
     assert TASKS["isaac-reach-ur10-isaac-reward"] is preset
 
 
+def test_the_rotation_tanh_config_is_the_box_config_on_its_preset() -> None:
+    from robogym_ray.training.presets import TASKS, resolve_task
+
+    tanh = load_config("isaac-reach-ur10-her-average-long-replay-box-rotation-tanh")
+    box = load_config("isaac-reach-ur10-her-average-long-replay-box")
+    assert tanh[1] == box[1] and tanh[0].relabel_goals == box[0].relabel_goals == 4
+    preset = resolve_task(tanh[0].task)
+    assert preset.env_id == "RoboGymRay/IsaacReachRotationTanhUR10Sim-v0"
+    assert TASKS["isaac-reach-ur10-rotation-tanh"] is preset
+    assert (tanh[1]["v_min"], tanh[1]["v_max"]) == (preset.d4pg["v_min"], preset.d4pg["v_max"])
+
+
 @pytest.mark.ray
 @pytest.mark.slow
 @pytest.mark.usefixtures("ray_cluster")
