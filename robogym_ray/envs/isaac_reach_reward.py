@@ -124,8 +124,11 @@ class IsaacLabReachMDP(PoseCommands):
 
     def _tracking(self, position: Any, rotation: Any) -> Any:
         """``tracking_per_second`` plus this task's rotation tanh term (none by default)."""
+        tracking = tracking_per_second(position, rotation)
+        if not self.rotation_tanh_weight:  # Isaac Lab's reward: no tanh of every relabelled row
+            return tracking
         shaped = 1.0 - np.tanh(np.asarray(rotation, np.float64) / self.rotation_tanh_std)
-        return tracking_per_second(position, rotation) + self.rotation_tanh_weight * shaped
+        return tracking + self.rotation_tanh_weight * shaped
 
     def _evaluate(
         self, msg: pb.State, obs: np.ndarray, action: np.ndarray
