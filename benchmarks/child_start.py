@@ -21,8 +21,9 @@ import signal
 import subprocess
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from concurrent import futures
+from contextlib import contextmanager
 
 import grpc
 
@@ -49,13 +50,10 @@ WAYS: dict[str, Callable[..., subprocess.CompletedProcess]] = {
 }
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--children", type=int, default=300)
-    parser.add_argument("--rounds", type=int, default=2)
-    parser.add_argument("--calls", action="store_true", help="keep a thread calling the server")
-    args = parser.parse_args()
-
+@contextmanager
+def live_grpc_calls(calling: bool = True) -> Iterator[list[bool]]:
+    """A gRPC echo server on 127.0.0.1 in this process, called once; with ``calling``, a thread
+    that keeps calling it until the block ends. Yields the calls' outcomes (True: echoed)."""
     echo = grpc.unary_unary_rpc_method_handler(lambda request, context: request)
     server = grpc.server(futures.ThreadPoolExecutor(max_workers=4))
     server.add_generic_rpc_handlers([grpc.method_handlers_generic_handler("b.Echo", {"Do": echo})])
@@ -63,17 +61,34 @@ def main() -> None:
     server.start()
     channel = grpc.insecure_channel(f"127.0.0.1:{port}")
     call = channel.unary_unary("/b.Echo/Do")
-    call(b"x", timeout=30)
+    answered = [call(b"x", timeout=30) == b"x"]
     stop = threading.Event()
 
     def keep_calling() -> None:
         while not stop.is_set():
-            call(b"x", timeout=30)
+            answered.append(call(b"x", timeout=30) == b"x")
 
     caller = threading.Thread(target=keep_calling)
-    if args.calls:
+    if calling:
         caller.start()
     try:
+        yield answered
+    finally:
+        stop.set()
+        if calling:
+            caller.join()
+        channel.close()
+        server.stop(grace=None)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--children", type=int, default=300)
+    parser.add_argument("--rounds", type=int, default=2)
+    parser.add_argument("--calls", action="store_true", help="keep a thread calling the server")
+    args = parser.parse_args()
+
+    with live_grpc_calls(calling=args.calls):
         for round_ in range(args.rounds):
             for way, run in WAYS.items():
                 began, died = time.perf_counter(), 0
@@ -87,12 +102,6 @@ def main() -> None:
                     "calls": args.calls, "grpcio": grpc.__version__,
                     "machine": platform.node(), "load": os.getloadavg()[0],
                 }), flush=True)  # fmt: skip
-    finally:
-        stop.set()
-        if args.calls:
-            caller.join()
-        channel.close()
-        server.stop(grace=None)
 
 
 if __name__ == "__main__":

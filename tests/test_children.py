@@ -3,6 +3,7 @@ as the processes the tests start do when the test run is stopped (SIGTERM) or ki
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import signal
 import subprocess
@@ -15,6 +16,17 @@ import pytest
 pytestmark = pytest.mark.skipif(
     not sys.platform.startswith("linux"), reason="the parent-death signal is Linux's"
 )
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def child_start():
+    """``benchmarks/child_start.py``: its live gRPC server and caller serve the test below."""
+    spec = importlib.util.spec_from_file_location("child_start", ROOT / "benchmarks/child_start.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
 
 PARENT = """
 import sys, time
@@ -61,40 +73,15 @@ def test_a_child_ends_with_its_parent(stop: signal.Signals) -> None:
 def test_children_of_a_process_with_live_grpc_calls_all_start() -> None:
     """grpc/grpc#43055: a child forked (``preexec_fn``) while this process has gRPC calls in
     flight could abort before its ``exec`` (``epoll_wait error: Bad file descriptor``): robo-gym's
-    client in the compat tests died so once. 100 children, started beside a thread that keeps
+    client in the compat tests died so once. 300 children, started beside a thread that keeps
     calling a real gRPC server on 127.0.0.1, must all run their program."""
-    import threading
-    from concurrent import futures
-
-    import grpc
-
     from robogym_ray import children
 
-    echo = grpc.unary_unary_rpc_method_handler(lambda request, context: request)
-    server = grpc.server(futures.ThreadPoolExecutor(max_workers=4))
-    server.add_generic_rpc_handlers([grpc.method_handlers_generic_handler("t.Echo", {"Do": echo})])
-    port = server.add_insecure_port("127.0.0.1:0")
-    server.start()
-    channel = grpc.insecure_channel(f"127.0.0.1:{port}")
-    call = channel.unary_unary("/t.Echo/Do")
-    stop, answered = threading.Event(), []
-
-    def keep_calling() -> None:
-        while not stop.is_set():
-            answered.append(call(b"x", timeout=30) == b"x")
-
-    caller = threading.Thread(target=keep_calling)
-    caller.start()
-    try:
-        ran = [children.run(["true"], capture_output=True, timeout=60) for _ in range(100)]
-    finally:
-        stop.set()
-        caller.join()
-        channel.close()
-        server.stop(grace=None)
+    with child_start().live_grpc_calls() as answered:
+        ran = [children.run(["true"], capture_output=True, timeout=60) for _ in range(300)]
     failed = [(r.returncode, r.stderr[-300:]) for r in ran if r.returncode != 0]
     assert failed == [], failed
-    assert answered and all(answered)
+    assert len(answered) > 1 and all(answered)  # the thread's calls, past the first one
 
 
 def test_a_childs_program_ignores_the_signals_a_subprocess_child_ignores() -> None:
