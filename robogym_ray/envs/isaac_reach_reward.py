@@ -25,7 +25,8 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from typing import Any
+from dataclasses import dataclass
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -46,6 +47,17 @@ def tracking_per_second(position: Any, rotation: Any) -> Any:
     floats, or arrays of them (hindsight relabelling scores many commands at once)."""
     tanh = TANH_WEIGHT * (1.0 - np.tanh(np.asarray(position, np.float64) / TANH_STD))
     return POSITION_WEIGHT * position + tanh + ROTATION_WEIGHT * rotation
+
+
+@dataclass(frozen=True)
+class TanhTerm:
+    """A reward term ``weight (1 - tanh(error / std))`` per second, beyond Isaac Lab's: >= 0, its
+    weight on the command, its slope near it ``weight / std``."""
+
+    error: Literal["position", "rotation"]
+    """Which error it prices: tool1's position (m) or rotation (rad) to the command."""
+    weight: float
+    std: float
 
 
 def effort_per_second(action_change: np.ndarray, joint_velocity: np.ndarray) -> float:
@@ -92,10 +104,8 @@ class IsaacLabReachMDP(PoseCommands):
     command the way ``_evaluate`` scores the one in force.
     """
 
-    rotation_tanh_weight = 0.0
-    """A rotation term shaped like the position's tanh (per second; 0: Isaac Lab's reward)."""
-    rotation_tanh_std = 0.25
-    """Its std (rad)."""
+    tanh_terms: ClassVar[tuple[TanhTerm, ...]] = ()
+    """Reward terms beyond Isaac Lab's (none: Isaac Lab's reward)."""
     max_episode_steps = 360  # 12 s at 30 Hz: Isaac Lab's dt of 1/60 s x decimation 2
     # A new command every 4 s: PoseCommands' resampling_time default, Isaac Lab's.
     reward_info_keys = ("effort",)
@@ -123,12 +133,13 @@ class IsaacLabReachMDP(PoseCommands):
         return per_second / self.action_rate
 
     def _tracking(self, position: Any, rotation: Any) -> Any:
-        """``tracking_per_second`` plus this task's rotation tanh term (none by default)."""
+        """``tracking_per_second`` plus this task's ``tanh_terms``."""
         tracking = tracking_per_second(position, rotation)
-        if not self.rotation_tanh_weight:  # Isaac Lab's reward: no tanh of every relabelled row
-            return tracking
-        shaped = 1.0 - np.tanh(np.asarray(rotation, np.float64) / self.rotation_tanh_std)
-        return tracking + self.rotation_tanh_weight * shaped
+        errors = {"position": position, "rotation": rotation}
+        for term in self.tanh_terms:
+            error = np.asarray(errors[term.error], np.float64)
+            tracking = tracking + term.weight * (1.0 - np.tanh(error / term.std))
+        return tracking
 
     def _evaluate(
         self, msg: pb.State, obs: np.ndarray, action: np.ndarray

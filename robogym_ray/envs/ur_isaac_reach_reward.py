@@ -9,7 +9,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from robogym_ray.envs.isaac_reach_reward import IsaacLabReachMDP, step_reward_range
+from robogym_ray.envs.isaac_reach_reward import IsaacLabReachMDP, TanhTerm, step_reward_range
 from robogym_ray.envs.ur_common import JOINT_MAX
 from robogym_ray.envs.ur_modular import IsaacReachUR
 from robogym_ray.robots.ur.geometry import UR_MODELS
@@ -75,8 +75,22 @@ class IsaacReachRotationTanhUR(IsaacReachIsaacRewardUR):
     second near the command. Spaces, commands, ends and resets are ``IsaacReachIsaacRewardUR``'s.
     """
 
-    rotation_tanh_weight = 0.1
-    rotation_tanh_std = 0.25
+    tanh_terms = (TanhTerm("rotation", 0.1, 0.25),)
+
+
+class IsaacReachFineTanhUR(IsaacReachRotationTanhUR):
+    """``IsaacReachRotationTanhUR`` with two finer tanh terms, ``+0.1 (1 - tanh(d / 0.02))`` and
+    ``+0.1 (1 - tanh(theta / 0.05))`` per second, their stds robo-gym's success tolerances: the
+    coarse terms' slopes near the command (1 per m, 0.4 per rad) tell 1.35 cm from 1 cm by 0.004
+    per second; these add 5 per m and 2 per rad there. Spaces, commands, ends and resets are
+    ``IsaacReachIsaacRewardUR``'s.
+    """
+
+    tanh_terms = (
+        *IsaacReachRotationTanhUR.tanh_terms,
+        TanhTerm("position", 0.1, 0.02),
+        TanhTerm("rotation", 0.1, 0.05),
+    )
 
 
 def return_range(
@@ -85,13 +99,13 @@ def return_range(
     """The bounds of a discounted return of ``IsaacReachIsaacRewardUR10Sim-v0`` (episodes end
     only by the time limit, so the horizon is 1 / (1 - discount)), from its action bounds and
     the UR10's speed limits at the env's 0.2 of them, at 30 Hz; ``task``: the variant, whose
-    rotation tanh term (>= 0, its weight at best) raises the best only."""
+    tanh terms (>= 0, their weights at best) raise the best only."""
     default = np.asarray(IsaacReachUR.default_joints)
     scale = 0.5  # isaac_scale's default
     low, high = (-JOINT_MAX - default) / scale, (JOINT_MAX - default) / scale
     speeds = IsaacReachUR.velocity_scale * np.asarray(UR_MODELS["ur10"].max_velocity)
     rate = IsaacReachUR.action_rate
     worst, best = step_reward_range(low, high, speeds, MAX_POSITION_ERROR, rate)
-    best += task.rotation_tanh_weight / rate
+    best += sum(term.weight for term in task.tanh_terms) / rate
     horizon = 1.0 / (1.0 - discount)
     return worst * horizon, best * horizon

@@ -78,6 +78,13 @@ _ISAAC_REACH_ROTATION_TANH = {
         )
     ),
 }
+# [-4, 2]: the two finer terms add 0.2 / 30 more, 0.0133 x 100 = 1.33.
+_ISAAC_REACH_FINE_TANH = {
+    **_POSITIONING,
+    **_support(
+        lambda d: ur_isaac_reach_reward.return_range(d, ur_isaac_reach_reward.IsaacReachFineTanhUR)
+    ),
+}
 _NAVIGATION = {"v_min": -300.0, "v_max": 450.0, "layer_norm": True, "min_replay_size": 500}
 
 TASKS: dict[str, TaskPreset] = {
@@ -141,6 +148,13 @@ TASKS: dict[str, TaskPreset] = {
         "RoboGymRay/IsaacReachRotationTanhUR10Sim-v0",
         _ISAAC_REACH_ROTATION_TANH,
         "isaac-reach-ur10-isaac-reward with the rotation priced like 2.1.0's success; a goal task",
+    ),
+    # The same with two finer terms, +0.1 (1 - tanh(d / 0.02)) and +0.1 (1 - tanh(theta / 0.05))
+    # per second: their stds the success tolerances, for the last centimetre and 0.05 rad.
+    "isaac-reach-ur10-fine-tanh": TaskPreset(
+        "RoboGymRay/IsaacReachFineTanhUR10Sim-v0",
+        _ISAAC_REACH_FINE_TANH,
+        "isaac-reach-ur10-rotation-tanh with finer tanh terms at the success tolerances",
     ),
     # Isaac Lab 3's deploy reach (UR10e): its keypoint reward times 1/60 s per step, plus the
     # action and action-rate L2 terms; episodes end only by the time limit, so the support is the

@@ -22,14 +22,20 @@ SIM, ROB = (
 )
 ORIGINAL = "RoboGymRay/IsaacReachUR10Sim-v0"
 ROTATION_TANH = "RoboGymRay/IsaacReachRotationTanhUR10Sim-v0"
+FINE_TANH = "RoboGymRay/IsaacReachFineTanhUR10Sim-v0"
 DEFAULT = np.array([0.0, -1.712, 1.712, 0.0, 0.0, 0.0])
 
 
-def isaac_lab_reward(position: float, rotation: float, change, velocity, tanh_weight=0.0) -> float:
+def isaac_lab_reward(
+    position: float, rotation: float, change, velocity, tanh_weight=0.0, fine_weight=0.0
+) -> float:
     """Isaac Lab's five reach terms times their weights and the step dt of 2 x 1/60 s; with
-    ``tanh_weight``, the rotation variant's sixth, ``tanh_weight (1 - tanh(rotation / 0.25))``."""
+    ``tanh_weight``, the rotation variant's sixth, ``tanh_weight (1 - tanh(rotation / 0.25))``;
+    with ``fine_weight``, the fine variant's two more at stds 0.02 m and 0.05 rad."""
     terms = [
         tanh_weight * (1.0 - math.tanh(rotation / 0.25)),
+        fine_weight * (1.0 - math.tanh(position / 0.02)),
+        fine_weight * (1.0 - math.tanh(rotation / 0.05)),
         -0.2 * position,
         0.1 * (1.0 - math.tanh(position / 0.1)),
         -0.1 * rotation,
@@ -79,9 +85,12 @@ def test_ids_spaces_server_and_isaac_terms_are_isaac_reach_ur10s() -> None:
         original.close()
 
 
-@pytest.mark.parametrize(("env_id", "tanh_weight"), [(SIM, 0.0), (ROTATION_TANH, 0.1)])
+@pytest.mark.parametrize(
+    ("env_id", "tanh_weight", "fine_weight"),
+    [(SIM, 0.0, 0.0), (ROTATION_TANH, 0.1, 0.0), (FINE_TANH, 0.1, 0.1)],
+)
 def test_a_step_scores_tool1_against_the_command_by_isaac_labs_formula(
-    env_id: str, tanh_weight: float
+    env_id: str, tanh_weight: float, fine_weight: float
 ) -> None:
     env = gym.make(env_id, rs_state_to_info=True)
     try:
@@ -103,7 +112,9 @@ def test_a_step_scores_tool1_against_the_command_by_isaac_labs_formula(
             rotation = angle(quat_here, goal[3:])
             velocity = [sd[k] for k in task.velocity_keys]
             change = action - previous
-            expected = isaac_lab_reward(position, rotation, change, velocity, tanh_weight)
+            expected = isaac_lab_reward(
+                position, rotation, change, velocity, tanh_weight, fine_weight
+            )
             assert reward == pytest.approx(expected, abs=1e-6)
             assert info["dist_coord"] == pytest.approx(position, abs=1e-6)
             assert info["dist_rot"] == pytest.approx(rotation, abs=1e-5)
@@ -112,8 +123,8 @@ def test_a_step_scores_tool1_against_the_command_by_isaac_labs_formula(
         # On the command, the arm still, the action unchanged: the top reward, the tanh terms.
         env.reset(seed=5, options={"joint_positions": DEFAULT, "ee_target_pose": [*pos, *quat]})
         _, reward, *_ = env.step(np.zeros(6, np.float32))
-        top = (0.1 + tanh_weight) / 30
-        assert top - 1e-6 < reward <= top
+        top = (0.1 + tanh_weight + 2 * fine_weight) / 30
+        assert top - 1e-5 < reward <= top
     finally:
         env.close()
 
@@ -196,25 +207,34 @@ def test_bang_bang_steps_stay_inside_the_reward_range_and_the_presets_support() 
     assert 100 * best <= preset.d4pg["v_max"] < 100 * best + 1
 
 
-def test_the_rotation_tanh_variants_range_and_support() -> None:
-    from robogym_ray.envs.ur_isaac_reach_reward import IsaacReachRotationTanhUR, return_range
+@pytest.mark.parametrize(
+    ("env_id", "preset_name", "added", "support"),
+    [
+        (ROTATION_TANH, "isaac-reach-ur10-rotation-tanh", 0.1, (-4.0, 1.0)),
+        (FINE_TANH, "isaac-reach-ur10-fine-tanh", 0.3, (-4.0, 2.0)),
+    ],
+)
+def test_the_tanh_variants_range_and_support(
+    env_id: str, preset_name: str, added: float, support: tuple[float, float]
+) -> None:
+    from robogym_ray.envs.ur_isaac_reach_reward import return_range
     from robogym_ray.training.presets import TASKS
 
-    (worst, best), (tanh_worst, tanh_best) = (
-        return_range(),
-        return_range(0.99, IsaacReachRotationTanhUR),
-    )
-    # The term is >= 0: the worst stays, the best gains its 0.1 a second over the horizon.
-    assert tanh_worst == worst and tanh_best == pytest.approx(best + 0.1 / 30 * 100)
-    env = gym.make(ROTATION_TANH)
+    env = gym.make(env_id)
     try:
+        (worst, best), (tanh_worst, tanh_best) = (
+            return_range(),
+            return_range(0.99, type(env.unwrapped)),
+        )
+        # The terms are >= 0: the worst stays, the best gains their weights over the horizon.
+        assert tanh_worst == worst and tanh_best == pytest.approx(best + added / 30 * 100)
         env.reset(seed=2)
         low, high = env.action_space.low, env.action_space.high
         rewards = [env.step(high if t % 2 else low)[1] for t in range(12)]
         assert all(tanh_worst / 100 <= r <= tanh_best / 100 for r in rewards), rewards
     finally:
         env.close()
-    preset = TASKS["isaac-reach-ur10-rotation-tanh"]
-    assert preset.env_id == ROTATION_TANH
-    assert (preset.d4pg["v_min"], preset.d4pg["v_max"]) == (-4.0, 1.0)
+    preset = TASKS[preset_name]
+    assert preset.env_id == env_id
+    assert (preset.d4pg["v_min"], preset.d4pg["v_max"]) == support
     assert tanh_best <= preset.d4pg["v_max"] < tanh_best + 1
