@@ -25,8 +25,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
-from typing import Any, ClassVar, Literal
+from typing import Any
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -47,17 +46,6 @@ def tracking_per_second(position: Any, rotation: Any) -> Any:
     floats, or arrays of them (hindsight relabelling scores many commands at once)."""
     tanh = TANH_WEIGHT * (1.0 - np.tanh(np.asarray(position, np.float64) / TANH_STD))
     return POSITION_WEIGHT * position + tanh + ROTATION_WEIGHT * rotation
-
-
-@dataclass(frozen=True)
-class TanhTerm:
-    """A reward term ``weight (1 - tanh(error / std))`` per second, beyond Isaac Lab's: >= 0, its
-    weight on the command, its slope near it ``weight / std``."""
-
-    error: Literal["position", "rotation"]
-    """Which error it prices: tool1's position (m) or rotation (rad) to the command."""
-    weight: float
-    std: float
 
 
 def effort_per_second(action_change: np.ndarray, joint_velocity: np.ndarray) -> float:
@@ -104,8 +92,6 @@ class IsaacLabReachMDP(PoseCommands):
     command the way ``_evaluate`` scores the one in force.
     """
 
-    tanh_terms: ClassVar[tuple[TanhTerm, ...]] = ()
-    """Reward terms beyond Isaac Lab's (none: Isaac Lab's reward)."""
     max_episode_steps = 360  # 12 s at 30 Hz: Isaac Lab's dt of 1/60 s x decimation 2
     # A new command every 4 s: PoseCommands' resampling_time default, Isaac Lab's.
     reward_info_keys = ("effort",)
@@ -134,12 +120,7 @@ class IsaacLabReachMDP(PoseCommands):
 
     def _tracking(self, position: Any, rotation: Any) -> Any:
         """``tracking_per_second`` plus this task's ``tanh_terms``."""
-        tracking = tracking_per_second(position, rotation)
-        errors = {"position": position, "rotation": rotation}
-        for term in self.tanh_terms:
-            error = np.asarray(errors[term.error], np.float64)
-            tracking = tracking + term.weight * (1.0 - np.tanh(error / term.std))
-        return tracking
+        return tracking_per_second(position, rotation) + self.tanh_per_second(position, rotation)
 
     def _evaluate(
         self, msg: pb.State, obs: np.ndarray, action: np.ndarray

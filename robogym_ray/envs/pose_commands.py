@@ -14,7 +14,8 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from typing import Any
+from dataclasses import dataclass
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -44,6 +45,17 @@ def pose_error(pos: np.ndarray, rotation: Rotation, goal: np.ndarray) -> tuple[f
     return float(position), float(turn)
 
 
+@dataclass(frozen=True)
+class TanhTerm:
+    """A reward term ``weight (1 - tanh(error / std))`` per second, beyond Isaac Lab's: >= 0, its
+    weight on the command, its slope near it ``weight / std``."""
+
+    error: Literal["position", "rotation"]
+    """Which error it prices: the frame's position (m) or rotation (rad) to the command."""
+    weight: float
+    std: float
+
+
 class PoseCommands(PoseTask):
     """``PoseTask`` whose target is redrawn every ``resampling_time`` seconds of env time.
 
@@ -52,6 +64,9 @@ class PoseCommands(PoseTask):
             the env's action rate, at least one.
         **kwargs: ``PoseTask``'s.
     """
+
+    tanh_terms: ClassVar[tuple[TanhTerm, ...]] = ()
+    """Reward terms beyond Isaac Lab's (none: Isaac Lab's reward), for the task variants."""
 
     def __init__(self, *, resampling_time: float = 4.0, **kwargs: Any) -> None:
         self.resampling_time = float(resampling_time)
@@ -95,3 +110,13 @@ class PoseCommands(PoseTask):
         if self.elapsed_steps % self.window == 0 or self.elapsed_steps >= self.max_episode_steps:
             return dict(zip(WINDOW_KEYS, (position, rotation), strict=True))
         return {}
+
+    def tanh_per_second(self, position: Any, rotation: Any) -> Any:
+        """The sum of ``tanh_terms`` before the dt, of position and rotation errors (m, rad):
+        floats, or arrays of them (hindsight relabelling scores many commands at once)."""
+        errors = {"position": position, "rotation": rotation}
+        total: Any = 0.0
+        for term in self.tanh_terms:
+            error = np.asarray(errors[term.error], np.float64)
+            total = total + term.weight * (1.0 - np.tanh(error / term.std))
+        return total

@@ -9,7 +9,8 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from robogym_ray.envs.isaac_reach_reward import IsaacLabReachMDP, TanhTerm, step_reward_range
+from robogym_ray.envs.isaac_reach_reward import IsaacLabReachMDP, step_reward_range
+from robogym_ray.envs.pose_commands import TanhTerm
 from robogym_ray.envs.ur_common import JOINT_MAX
 from robogym_ray.envs.ur_modular import IsaacReachUR
 from robogym_ray.robots.ur.geometry import UR_MODELS

@@ -1,5 +1,5 @@
-"""The isaac-reach-ur10-her-average-long-replay-box-rotation-tanh experiment end to end, CI-sized:
-a training from its config file (the isaac-reach-ur10-rotation-tanh preset and support, hindsight
+"""The isaac-reach-ur10-her-average-long-replay-box-fine-tanh experiment end to end, CI-sized:
+a training from its config file (the isaac-reach-ur10-fine-tanh preset and support, hindsight
 relabelling, policy averaging, the action box; small networks and replay, a short warm-up), then
 ``evaluate`` of the averaged policy on robo-gym 2.1.0's IsaacReachUR10Sim-v0, the env its
 policies are scored on; and a training of it whose evaluator plays that env (``eval_env_id``)."""
@@ -21,7 +21,7 @@ pytestmark = [pytest.mark.ray, pytest.mark.slow, pytest.mark.usefixtures("ray_cl
 
 CONFIG = (
     Path(__file__).resolve().parents[2]
-    / "experiments/configs/isaac-reach-ur10-her-average-long-replay-box-rotation-tanh.json"
+    / "experiments/configs/isaac-reach-ur10-her-average-long-replay-box-fine-tanh.json"
 )
 ORIGINAL = "RoboGymRay/IsaacReachUR10Sim-v0"
 # Small networks, few learner steps: the path is under test, not the learning.
@@ -38,7 +38,7 @@ def test_a_short_training_runs_and_evaluate_scores_it_on_isaac_reach_ur10(
         total_steps=740, random_steps=100, logdir=str(tmp_path), run_name="smoke",
         progress=False, video_interval_s=0.0, final_eval_episodes=1,
     )  # fmt: skip
-    assert summary["task"] == "RoboGymRay/IsaacReachRotationTanhUR10Sim-v0"
+    assert summary["task"] == "RoboGymRay/IsaacReachFineTanhUR10Sim-v0"
     assert summary["env_steps"] >= 740 and summary["learner_steps"] > 0
     # The config's four copies of each step of the two finished episodes reached the replay.
     assert summary["relabelled_transitions"] == 4 * 2 * 360, summary["final_status_counts"]
@@ -46,7 +46,7 @@ def test_a_short_training_runs_and_evaluate_scores_it_on_isaac_reach_ur10(
     # The variant ends only by time: its evaluator scores the window-end errors.
     assert summary["eval/timeout_rate"] == 1.0 and 0 < summary["eval/window_position_error"] < 3
     config = json.loads((tmp_path / "smoke" / "config.json").read_text())
-    assert (config["d4pg"]["v_min"], config["d4pg"]["v_max"]) == (-4.0, 1.0)
+    assert (config["d4pg"]["v_min"], config["d4pg"]["v_max"]) == (-4.0, 2.0)
     assert config["d4pg"]["policy_average_tau"] > 0 and config["train"]["relabel_goals"] == 4
     box = np.array([config["d4pg"]["action_box_low"], config["d4pg"]["action_box_high"]])
     policy, _ = load_checkpoint_policy(tmp_path / "smoke" / "checkpoints" / "learner.pt")
@@ -70,7 +70,7 @@ def test_the_evaluator_plays_isaac_reach_ur10_while_the_variant_trains(tmp_path:
         video_interval_s=0.0, final_eval_episodes=1, eval_env_id="isaac-reach-ur10",
         select_episodes=1,
     )  # fmt: skip
-    assert summary["task"] == "RoboGymRay/IsaacReachRotationTanhUR10Sim-v0"
+    assert summary["task"] == "RoboGymRay/IsaacReachFineTanhUR10Sim-v0"
     assert summary["eval_env_id"] == ORIGINAL
     # 2.1.0's episodes end at the target, in a collision or at their limit, and have no
     # command windows: the variant's evaluator always reports window errors (the test above).

@@ -122,15 +122,52 @@ def test_isaac_reach_ur10_on_isaac_labs_reward_is_the_positioning_recipe_with_it
     assert TASKS["isaac-reach-ur10-isaac-reward"] is preset
 
 
-def test_the_rotation_tanh_config_is_the_box_config_on_its_preset() -> None:
-    from robogym_ray.training.presets import TASKS, resolve_task
+def configs_on_supported_presets() -> list[str]:
+    """The configs whose task is a preset that sets a critic support."""
+    from robogym_ray.training.presets import TASKS
 
-    tanh = load_config("isaac-reach-ur10-her-average-long-replay-box-rotation-tanh")
-    box = load_config("isaac-reach-ur10-her-average-long-replay-box")
-    assert tanh[1] == box[1] and tanh[0].relabel_goals == box[0].relabel_goals == 4
+    names = sorted(p.stem for p in (EXPERIMENTS / "configs").glob("*.json"))
+    tasks = {name: load_config(name)[0].task for name in names}
+    return [n for n in names if "v_max" in getattr(TASKS.get(tasks[n]), "d4pg", {})]
+
+
+@pytest.mark.parametrize("config", configs_on_supported_presets())
+def test_every_configs_support_holds_its_presets_returns(config: str) -> None:
+    """A config's own ``v_min`` / ``v_max`` win over its preset's, so a config moved to a preset
+    with a wider return range (a reward with more terms) must widen them too: the critic clips
+    returns outside its support silently."""
+    from robogym_ray.training.presets import TASKS
+
+    train, d4pg, _ = load_config(config)
+    preset = TASKS[train.task]
+    assert d4pg["v_min"] <= preset.d4pg["v_min"] and d4pg["v_max"] >= preset.d4pg["v_max"]
+
+
+@pytest.mark.parametrize(
+    ("name", "base", "env_id"),
+    [
+        ("isaac-reach-ur10-her-average-long-replay-box-rotation-tanh",
+         "isaac-reach-ur10-her-average-long-replay-box",
+         "RoboGymRay/IsaacReachRotationTanhUR10Sim-v0"),
+        ("isaac-reach-ur10-her-average-long-replay-box-fine-tanh",
+         "isaac-reach-ur10-her-average-long-replay-box-rotation-tanh",
+         "RoboGymRay/IsaacReachFineTanhUR10Sim-v0"),
+    ],
+)  # fmt: skip
+def test_the_tanh_configs_are_their_base_config_on_their_preset(
+    name: str, base: str, env_id: str
+) -> None:
+    """Each tanh config changes its base's task only, and the critic's support to its preset's."""
+    from robogym_ray.training.presets import resolve_task
+
+    tanh, before = load_config(name), load_config(base)
+    support = ("v_min", "v_max")
+    assert {k: v for k, v in tanh[1].items() if k not in support} == {
+        k: v for k, v in before[1].items() if k not in support
+    }
+    assert tanh[0].relabel_goals == before[0].relabel_goals == 4
     preset = resolve_task(tanh[0].task)
-    assert preset.env_id == "RoboGymRay/IsaacReachRotationTanhUR10Sim-v0"
-    assert TASKS["isaac-reach-ur10-rotation-tanh"] is preset
+    assert preset.env_id == env_id
     assert (tanh[1]["v_min"], tanh[1]["v_max"]) == (preset.d4pg["v_min"], preset.d4pg["v_max"])
 
 
