@@ -78,8 +78,6 @@ TASKS: tuple[tuple[str, str, tuple[RobotVariant, ...]], ...] = (
     ("IsaacReachFineTanh", _ISAAC_REWARD + "IsaacReachFineTanhUR", _ur("UR10")),
     # Isaac Lab 3's Isaac-Deploy-Reach-UR10e-v0 (19 obs / 6 actions, 60 Hz).
     ("IsaacDeployReach", _DEPLOY + "IsaacDeployReachUR", _ur("UR10e")),
-    # The same with position and rotation tanh terms beside the keypoint reward.
-    ("IsaacDeployReachTanh", _DEPLOY + "IsaacDeployReachTanhUR", _ur("UR10e")),
 )
 NONDETERMINISTIC = frozenset({"AvoidanceRaad2022"})
 """Tasks whose reset is not a function of the env seed alone: the sphere's spline is drawn by the

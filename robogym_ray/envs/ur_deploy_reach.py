@@ -31,7 +31,7 @@ from robogym_ray.envs.frames import (
     quat_to_order,
 )
 from robogym_ray.envs.io_descriptors import ActionTermSpec, IOContract, ObsTerm
-from robogym_ray.envs.pose_commands import PoseCommands, TanhTerm, pose_error, pose_errors
+from robogym_ray.envs.pose_commands import PoseCommands, pose_error
 from robogym_ray.envs.ur_common import URTask
 from robogym_ray.envs.ur_modular import UR2Arm
 from robogym_ray.errors import ConfigError
@@ -115,15 +115,10 @@ def step_reward_range(
     return worst / rate, best / rate
 
 
-def return_range(
-    discount: float = 0.99, task: type[IsaacDeployReachUR] | None = None
-) -> tuple[float, float]:
+def return_range(discount: float = 0.99) -> tuple[float, float]:
     """The bounds of a discounted return (episodes end only by the time limit, so the horizon is
-    1 / (1 - discount)) with the env's action bounds; ``task``: a variant, whose tanh terms (>= 0,
-    their weights at best) raise the best only."""
+    1 / (1 - discount)) with the env's action bounds."""
     worst, best = step_reward_range()
-    if task is not None:
-        best += sum(term.weight for term in task.tanh_terms) / task.action_rate
     horizon = 1.0 / (1.0 - discount)
     return worst * horizon, best * horizon
 
@@ -293,17 +288,9 @@ class IsaacDeployReachUR(PoseCommands, UR2Arm):
         achieved = np.atleast_2d(np.asarray(achieved_goal, np.float64))
         desired = np.atleast_2d(np.asarray(desired_goal, np.float64))
         order = self.quat_order
-        here, there = (
-            quat_from_order(achieved[:, 3:], order),
-            quat_from_order(desired[:, 3:], order),
-        )
-        d = keypoint_error(achieved[:, :3], here, desired[:, :3], there)
-        tracking = tracking_per_second(d)
-        if self.tanh_terms:  # a variant's terms (the plain task's relabelling skips the errors)
-            errors = pose_errors(achieved[:, :3], Rotation.from_quat(here), desired[:, :3],
-                                 Rotation.from_quat(there))  # fmt: skip
-            tracking = tracking + self.tanh_per_second(*errors)
-        return (tracking + np.asarray(info["effort"])) / self.action_rate
+        d = keypoint_error(achieved[:, :3], quat_from_order(achieved[:, 3:], order),
+                           desired[:, :3], quat_from_order(desired[:, 3:], order))  # fmt: skip
+        return (tracking_per_second(d) + np.asarray(info["effort"])) / self.action_rate
 
     def _evaluate(
         self, msg: pb.State, obs: np.ndarray, action: np.ndarray
@@ -325,23 +312,9 @@ class IsaacDeployReachUR(PoseCommands, UR2Arm):
             "effort": effort,
             **self.window_errors(position, rotation),
         }
-        tracking = float(tracking_per_second(d) + self.tanh_per_second(position, rotation))
-        return (tracking + effort) / self.action_rate, None, info
+        return (float(tracking_per_second(d)) + effort) / self.action_rate, None, info
 
     def server_spec(self) -> tuple[str, str | None, dict[str, str]]:
         robot, scene, options = super().server_spec()
         options.update(reference_frame="base", ee_frame="wrist_3_link", action_mode=SERVO_MODE)
         return robot, scene, options
-
-
-class IsaacDeployReachTanhUR(IsaacDeployReachUR):
-    """``IsaacDeployReachUR`` with two reward terms, ``+0.75 (1 - tanh(d / 0.1))`` and ``+0.75 (1 -
-    tanh(theta / 0.5))`` per second (``d``, ``theta``: ``wrist_3_link``'s position and rotation
-    errors): Isaac-Reach-UR10-v0's position tanh at its ratio to the linear term (0.1 to 0.2,
-    here 0.75 to 1.5), and the same for the rotation, its std scaled by the deploy goal's
-    tolerances (0.15 rad / 0.03 m x 0.1 m). The keypoint kernels pay within ~3 cm of keypoint
-    error, which needs the rotation within ~0.05 rad; these pay across the ~10 cm and ~0.3 rad
-    where the policies flatten. Spaces, commands, ends and resets are ``IsaacDeployReachUR``'s.
-    """
-
-    tanh_terms = (TanhTerm("position", 0.75, 0.1), TanhTerm("rotation", 0.75, 0.5))

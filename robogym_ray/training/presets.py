@@ -65,11 +65,6 @@ def _support(return_range: Callable[[float], tuple[float, float]]) -> dict[str, 
 # [-9, 4] for the UR10e at its streamed actions' bounds of [-1, 1] (it was [-138, 4] at the
 # trajectory bounds of before).
 _DEPLOY_REACH = {**_POSITIONING, **_support(ur_deploy_reach.return_range)}
-# [-9, 7]: its tanh terms add 1.5 / 60 to the best step, 2.5 over the horizon (3.75 + 2.5).
-_DEPLOY_REACH_TANH = {
-    **_POSITIONING,
-    **_support(lambda d: ur_deploy_reach.return_range(d, ur_deploy_reach.IsaacDeployReachTanhUR)),
-}
 # [-4, 1]: per step (-0.2 x 2.6 m - 0.1 x pi rad - 1e-4 x 3316 (every action jumping across its
 # +-25 bounds) - 1e-4 x 1.93 (every joint at 0.2 of its speed limit)) / 30 = -0.0389 at worst,
 # 0.1 / 30 = 0.0033 at best (on the command, still), times the horizon of 100 steps.
@@ -171,13 +166,6 @@ TASKS: dict[str, TaskPreset] = {
         "RoboGymRay/IsaacDeployReachUR10eSim-v0",
         _DEPLOY_REACH,
         "UR10e tracks a pose with 60 Hz joint targets: Isaac Lab 3's Isaac-Deploy-Reach-UR10e-v0",
-    ),
-    # The same with position and rotation tanh terms that pay across the ~10 cm and ~0.3 rad
-    # where its policies flatten (the keypoint kernels pay within ~3 cm of keypoint error).
-    "isaac-deploy-reach-ur10e-tanh": TaskPreset(
-        "RoboGymRay/IsaacDeployReachTanhUR10eSim-v0",
-        _DEPLOY_REACH_TANH,
-        "isaac-deploy-reach-ur10e with position and rotation tanh terms; a goal task",
     ),
     # Pendulum: the preset proven by benchmarks/pendulum.py (the local trainer applies it too).
     "pendulum": TaskPreset(

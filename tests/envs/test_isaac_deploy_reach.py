@@ -20,7 +20,6 @@ from robogym_ray.robots.ur.geometry import forward_kinematics
 from tests.envs.conftest import check_env_warnings
 
 SIM, ROB = "RoboGymRay/IsaacDeployReachUR10eSim-v0", "RoboGymRay/IsaacDeployReachUR10eRob-v0"
-TANH = "RoboGymRay/IsaacDeployReachTanhUR10eSim-v0"
 PI = math.pi
 DEFAULT = np.array([PI, -PI / 2, PI / 2, -PI / 2, -PI / 2, 0.0])
 
@@ -245,36 +244,3 @@ def test_the_evaluator_and_train_summary_report_window_end_errors() -> None:
     position = stats["eval_window_position_error"]
     assert f"window-end error median {position:.4f} m" in text
     assert "timeout" not in text and "training episodes" not in text
-
-
-def test_the_tanh_variant_adds_its_two_terms_and_its_support_holds_them() -> None:
-    """The same seed and actions on the task and its tanh variant: the same motion, and rewards
-    apart by exactly ``0.75 (1 - tanh(d / 0.1)) + 0.75 (1 - tanh(theta / 0.5))`` a second."""
-    from robogym_ray.envs.ur_deploy_reach import IsaacDeployReachTanhUR, return_range
-    from robogym_ray.training.presets import TASKS
-
-    plain, tanh = gym.make(SIM), gym.make(TANH)
-    try:
-        for env in (plain, tanh):
-            env.reset(seed=4)
-        rng = np.random.default_rng(4)
-        for _ in range(5):
-            action = rng.uniform(-1, 1, 6).astype(np.float32)
-            _, base, *_, info = plain.step(action)
-            _, reward, *_, tanh_info = tanh.step(action)
-            position, rotation = info["dist_coord"], info["dist_rot"]
-            assert (tanh_info["dist_coord"], tanh_info["dist_rot"]) == (position, rotation)
-            terms = 0.75 * (1 - math.tanh(position / 0.1)) + 0.75 * (1 - math.tanh(rotation / 0.5))
-            assert reward - base == pytest.approx(terms / 60, abs=1e-9)
-            assert 0 < terms < 1.5
-    finally:
-        plain.close()
-        tanh.close()
-    (worst, best), (tanh_worst, tanh_best) = (
-        return_range(),
-        return_range(0.99, IsaacDeployReachTanhUR),
-    )
-    assert tanh_worst == worst and tanh_best == pytest.approx(best + 1.5 / 60 * 100)
-    preset = TASKS["isaac-deploy-reach-ur10e-tanh"]
-    assert preset.env_id == TANH
-    assert (preset.d4pg["v_min"], preset.d4pg["v_max"]) == (-9.0, 7.0)
