@@ -82,7 +82,7 @@ class IsaacReachRotationTanhUR(IsaacReachIsaacRewardUR):
 class IsaacReachFineTanhUR(IsaacReachRotationTanhUR):
     """``IsaacReachRotationTanhUR`` with two finer tanh terms, ``+0.1 (1 - tanh(d / 0.02))`` and
     ``+0.1 (1 - tanh(theta / 0.05))`` per second, their stds robo-gym's success tolerances: the
-    coarse terms' slopes near the command (1 per m, 0.4 per rad) tell 1.35 cm from 1 cm by 0.004
+    coarse terms' slopes near the command (1.2 per m, 0.5 per rad) tell 1.35 cm from 1 cm by 0.004
     per second; these add 5 per m and 2 per rad there. Spaces, commands, ends and resets are
     ``IsaacReachIsaacRewardUR``'s.
     """
