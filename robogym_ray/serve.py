@@ -9,11 +9,10 @@ from __future__ import annotations
 import argparse
 import logging
 import os
-import signal
-import threading
 
 from robogym_ray.config import add_config_args, config_from_args
 from robogym_ray.errors import ConfigError
+from robogym_ray.foreground import StopSignals
 from robogym_ray.protocol.tls import server_tls
 from robogym_ray.robots.emulation import EmulationConfig
 from robogym_ray.robots.hardware import HardwareConfig
@@ -82,9 +81,7 @@ def run(args: argparse.Namespace) -> int:
         hardware=hardware,
         emulation=config_from_args(EmulationConfig, args, "emu-") if cfg.emulate_hardware else None,
     )
-    stop = threading.Event()
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, lambda *_: stop.set())
+    stop = StopSignals()
     print(f"listening on {handle.address}", flush=True)
     stop.wait()
     handle.stop()

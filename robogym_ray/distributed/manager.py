@@ -9,12 +9,11 @@ from __future__ import annotations
 
 import argparse
 import logging
-import signal
-import threading
 from dataclasses import dataclass
 
 from robogym_ray.config import add_config_args, check_port, check_ray_address, config_from_args
 from robogym_ray.errors import ConfigError
+from robogym_ray.foreground import StopSignals
 from robogym_ray.protocol.tls import server_tls
 from robogym_ray.robots.ports import check_port_free
 from robogym_ray.supervision.manager_service import ManagerLimits
@@ -22,6 +21,10 @@ from robogym_ray.supervision.restart_policy import RestartPolicy
 from robogym_ray.supervision.supervisor import SupervisorConfig
 
 log = logging.getLogger(__name__)
+
+MANAGER_STOP_DEADLINE_S = 60.0
+"""The manager's stop ends every robot server it started and its Ray session: more to do than
+one server's, so a longer deadline than ``foreground.STOP_DEADLINE_S``."""
 
 
 @dataclass(frozen=True)
@@ -127,13 +130,11 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError(
             f"could not start the server manager on {cfg.host}:{cfg.port}: {creation_error(exc)}"
         ) from None
-    stop = threading.Event()
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, lambda *_: stop.set())
+    stop = StopSignals()
     port = ray.get(supervisor.serving_port.remote())
     host = f"[{cfg.host}]" if ":" in cfg.host else cfg.host
     print(f"listening on {host}:{port}", flush=True)
-    stop.wait()
+    stop.wait(MANAGER_STOP_DEADLINE_S)
     stopped = ray.get(supervisor.shutdown.remote())
     log.info("stopped %s", stopped)
     ray.kill(supervisor, no_restart=True)

@@ -41,6 +41,8 @@ if TYPE_CHECKING:
 
 log = logging.getLogger(__name__)
 
+SHUTDOWN_CONFIRM_S = 5.0  # how long past its grace a stop waits for gRPC's confirmation
+
 ERROR_METADATA_KEY = "robogym-error"
 TOKEN_METADATA_KEY = "robogym-token"
 
@@ -340,7 +342,12 @@ class RobotServerHandle:
         return f"{host}:{self.port}"
 
     def stop(self, grace: float = 0.5) -> None:
-        self.server.stop(grace).wait()
+        """Stop serving (running calls get ``grace`` seconds), then close the robot (a real arm
+        comes to rest): gRPC's confirmation is awaited for a bounded time, never forever."""
+        confirm_s = grace + SHUTDOWN_CONFIRM_S
+        if not self.server.stop(grace).wait(timeout=confirm_s):
+            log.warning("gRPC did not confirm the server's shutdown in %.1f s; closing the robot "
+                        "anyway", confirm_s)  # fmt: skip
         self.core.close()
 
     def wait(self) -> None:

@@ -65,26 +65,23 @@ def _support(return_range: Callable[[float], tuple[float, float]]) -> dict[str, 
 # [-9, 4] for the UR10e at its streamed actions' bounds of [-1, 1] (it was [-138, 4] at the
 # trajectory bounds of before).
 _DEPLOY_REACH = {**_POSITIONING, **_support(ur_deploy_reach.return_range)}
+
+
+def _isaac_reach_support(task: type[ur_isaac_reach_reward.IsaacLabReachMDP]) -> dict[str, float]:
+    """The positioning settings with the support of an IsaacReach variant's returns."""
+    return {**_POSITIONING, **_support(lambda d: ur_isaac_reach_reward.return_range(d, task))}
+
+
 # [-4, 1]: per step (-0.2 x 2.6 m - 0.1 x pi rad - 1e-4 x 3316 (every action jumping across its
 # +-25 bounds) - 1e-4 x 1.93 (every joint at 0.2 of its speed limit)) / 30 = -0.0389 at worst,
 # 0.1 / 30 = 0.0033 at best (on the command, still), times the horizon of 100 steps.
-_ISAAC_REACH_ISAAC_REWARD = {**_POSITIONING, **_support(ur_isaac_reach_reward.return_range)}
+_ISAAC_REACH_ISAAC_REWARD = _isaac_reach_support(ur_isaac_reach_reward.IsaacReachIsaacRewardUR)
 # [-4, 1] too: the rotation tanh term adds 0.1 / 30 to the best step, 0.0067 x 100 = 0.67.
-_ISAAC_REACH_ROTATION_TANH = {
-    **_POSITIONING,
-    **_support(
-        lambda d: ur_isaac_reach_reward.return_range(
-            d, ur_isaac_reach_reward.IsaacReachRotationTanhUR
-        )
-    ),
-}
+_ISAAC_REACH_ROTATION_TANH = _isaac_reach_support(ur_isaac_reach_reward.IsaacReachRotationTanhUR)
 # [-4, 2]: the two finer terms add 0.2 / 30 more, 0.0133 x 100 = 1.33.
-_ISAAC_REACH_FINE_TANH = {
-    **_POSITIONING,
-    **_support(
-        lambda d: ur_isaac_reach_reward.return_range(d, ur_isaac_reach_reward.IsaacReachFineTanhUR)
-    ),
-}
+_ISAAC_REACH_FINE_TANH = _isaac_reach_support(ur_isaac_reach_reward.IsaacReachFineTanhUR)
+# [-4, 2] still: the third position term adds 0.1 / 30 more, 0.0033 x 100 = 0.33 (best 1.67).
+_ISAAC_REACH_CENTIMETRE = _isaac_reach_support(ur_isaac_reach_reward.IsaacReachCentimetreUR)
 _NAVIGATION = {"v_min": -300.0, "v_max": 450.0, "layer_norm": True, "min_replay_size": 500}
 
 TASKS: dict[str, TaskPreset] = {
@@ -155,6 +152,12 @@ TASKS: dict[str, TaskPreset] = {
         "RoboGymRay/IsaacReachFineTanhUR10Sim-v0",
         _ISAAC_REACH_FINE_TANH,
         "isaac-reach-ur10-rotation-tanh with finer tanh terms at the success tolerances",
+    ),
+    # The same with a third position term, +0.1 (1 - tanh(d / 0.01)).
+    "isaac-reach-ur10-centimetre": TaskPreset(
+        "RoboGymRay/IsaacReachCentimetreUR10Sim-v0",
+        _ISAAC_REACH_CENTIMETRE,
+        "isaac-reach-ur10-fine-tanh with a third position term at the goal's 1 cm",
     ),
     # Isaac Lab 3's deploy reach (UR10e): its keypoint reward times 1/60 s per step, plus the
     # action and action-rate L2 terms; episodes end only by the time limit, so the support is the

@@ -21,6 +21,7 @@ import pytest
 
 from robogym_ray import children
 from robogym_ray.errors import PortInUseError
+from robogym_ray.foreground import STOP_DEADLINE_S
 from robogym_ray.protocol import robot_server_pb2 as pb
 from robogym_ray.protocol import robot_server_pb2_grpc as pb_grpc
 from robogym_ray.protocol import server_manager_pb2 as sm
@@ -200,11 +201,16 @@ def test_a_server_binds_a_port_its_stopped_predecessor_left_in_time_wait() -> No
 
 
 @pytest.mark.parametrize("stop_signal", [signal.SIGTERM, signal.SIGKILL])
-def test_a_server_restarts_on_the_port_its_dead_predecessor_used(stop_signal: int) -> None:
+def test_a_server_restarts_on_the_port_its_dead_predecessor_used(
+    stop_signal: int, tmp_path: Path
+) -> None:
     """The supervisor's keep-port restart: once the old process is gone (stopped, or killed
-    with a client still connected), a new server binds the same port."""
+    with a client still connected), a new server binds the same port. A stopped one exits
+    cleanly; one whose stop hangs dumps its stacks to stderr at its deadline (shown here)."""
     cmd = [sys.executable, "-m", "robogym_ray.cli", "serve", "--robot", "mir100", "--port", "0"]
-    old = children.popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    stderr = tmp_path / "stderr.txt"
+    with stderr.open("w") as err:
+        old = children.popen(cmd, stdout=subprocess.PIPE, stderr=err, text=True)
     connected = None
     try:
         address = old.stdout.readline().strip().removeprefix("listening on ")  # type: ignore[union-attr]
@@ -212,7 +218,9 @@ def test_a_server_restarts_on_the_port_its_dead_predecessor_used(stop_signal: in
         connected = grpc.insecure_channel(address)  # a client that stays through the restart
         assert pb_grpc.RobotServerStub(connected).GetState(pb.Empty(), timeout=10).success
         old.send_signal(stop_signal)
-        old.wait(timeout=30)
+        old.wait(timeout=STOP_DEADLINE_S + 30)
+        if stop_signal == signal.SIGTERM:
+            assert old.returncode == 0, stderr.read_text()[-4000:]
         with serve_process(["--robot", "mir100", "--port", str(port)]) as again:
             assert again == address
             with grpc.insecure_channel(again) as channel:
