@@ -350,8 +350,16 @@ class RobotServerHandle:
                         "anyway", confirm_s)  # fmt: skip
         self.core.close()
 
-    def wait(self) -> None:
-        self.server.wait_for_termination()
+    def wait(self, timeout: float | None = None) -> bool:
+        """Block until the server stops (or ``timeout`` seconds pass); whether it stopped.
+        Anything raised meanwhile (Ctrl-C's KeyboardInterrupt) stops the server and closes the
+        robot before it propagates, so a real arm comes to rest. A foreground process that must
+        also end on SIGTERM installs ``foreground.StopSignals``, as ``serve`` does."""
+        try:
+            return not self.server.wait_for_termination(timeout)  # gRPC's True means timed out
+        except BaseException:
+            self.stop()
+            raise
 
 
 def start_robot_server(

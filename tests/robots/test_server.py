@@ -290,3 +290,41 @@ def test_ur10_out_of_range_action_is_refused(ur10: RobotServerHandle) -> None:
     )
     assert not reply.success and "wrist_3" in error_of(call)
     assert stub.GetState(pb.Empty(), timeout=5).success
+
+
+# A library user's way to serve: start, then wait in the main thread until Ctrl-C.
+WAITING_CHILD = """
+from robogym_ray.robots.server import start_robot_server
+
+handle = start_robot_server("mir100")
+print(handle.address, flush=True)
+try:
+    handle.wait()
+except KeyboardInterrupt:
+    print("connected" if handle.core.robot.world.client.isConnected() else "closed", flush=True)
+"""
+
+
+def test_wait_returns_whether_the_server_stopped() -> None:
+    handle = start_robot_server("mir100")
+    try:
+        assert handle.wait(timeout=0.05) is False  # still serving
+    finally:
+        handle.stop()
+    assert handle.wait(timeout=5) is True
+
+
+def test_ctrl_c_in_wait_stops_the_server_and_closes_the_robot() -> None:
+    proc = children.popen([sys.executable, "-c", WAITING_CHILD], stdout=subprocess.PIPE, text=True)
+    try:
+        address = proc.stdout.readline().strip()
+        assert stub_for(address).GetState(pb.Empty(), timeout=10).success
+        proc.send_signal(signal.SIGINT)
+        assert proc.stdout.readline() == "closed\n"  # the robot closed before Ctrl-C went on
+        assert proc.wait(timeout=20) == 0
+        with pytest.raises(grpc.RpcError) as failed:
+            stub_for(address).GetState(pb.Empty(), timeout=2)
+        assert failed.value.code() == grpc.StatusCode.UNAVAILABLE
+    finally:
+        if proc.poll() is None:
+            proc.kill()
