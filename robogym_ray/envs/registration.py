@@ -76,8 +76,6 @@ TASKS: tuple[tuple[str, str, tuple[RobotVariant, ...]], ...] = (
     ("IsaacReachRotationTanh", _ISAAC_REWARD + "IsaacReachRotationTanhUR", _ur("UR10")),
     # And with finer position and rotation tanh terms, their stds the success tolerances.
     ("IsaacReachFineTanh", _ISAAC_REWARD + "IsaacReachFineTanhUR", _ur("UR10")),
-    # And with a third position term, its std the 1 cm the final position is judged by.
-    ("IsaacReachCentimetre", _ISAAC_REWARD + "IsaacReachCentimetreUR", _ur("UR10")),
     # Isaac Lab 3's Isaac-Deploy-Reach-UR10e-v0 (19 obs / 6 actions, 60 Hz).
     ("IsaacDeployReach", _DEPLOY + "IsaacDeployReachUR", _ur("UR10e")),
 )

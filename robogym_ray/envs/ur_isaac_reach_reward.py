@@ -94,18 +94,6 @@ class IsaacReachFineTanhUR(IsaacReachRotationTanhUR):
     )
 
 
-class IsaacReachCentimetreUR(IsaacReachFineTanhUR):
-    """``IsaacReachFineTanhUR`` with a third position term, ``+0.1 (1 - tanh(d / 0.01))`` per
-    second, its std the 1 cm that the final position is judged by. 2.1.0's env ends a success
-    at the first step inside both tolerances, so its final position is wherever the position
-    is when the rotation crosses 0.05 rad: this term prices the last centimetre (10 per m on the
-    command, 2.6 per m at 1.3 cm, where the fine term gives 3.4) so that the position may settle
-    first. Spaces, commands, ends and resets are ``IsaacReachIsaacRewardUR``'s.
-    """
-
-    tanh_terms = (*IsaacReachFineTanhUR.tanh_terms, TanhTerm("position", 0.1, 0.01))
-
-
 def return_range(
     discount: float = 0.99, task: type[IsaacLabReachMDP] = IsaacReachIsaacRewardUR
 ) -> tuple[float, float]:

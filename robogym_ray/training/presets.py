@@ -80,8 +80,6 @@ _ISAAC_REACH_ISAAC_REWARD = _isaac_reach_support(ur_isaac_reach_reward.IsaacReac
 _ISAAC_REACH_ROTATION_TANH = _isaac_reach_support(ur_isaac_reach_reward.IsaacReachRotationTanhUR)
 # [-4, 2]: the two finer terms add 0.2 / 30 more, 0.0133 x 100 = 1.33.
 _ISAAC_REACH_FINE_TANH = _isaac_reach_support(ur_isaac_reach_reward.IsaacReachFineTanhUR)
-# [-4, 2] still: the third position term adds 0.1 / 30 more, 0.0033 x 100 = 0.33 (best 1.67).
-_ISAAC_REACH_CENTIMETRE = _isaac_reach_support(ur_isaac_reach_reward.IsaacReachCentimetreUR)
 _NAVIGATION = {"v_min": -300.0, "v_max": 450.0, "layer_norm": True, "min_replay_size": 500}
 
 TASKS: dict[str, TaskPreset] = {
@@ -152,12 +150,6 @@ TASKS: dict[str, TaskPreset] = {
         "RoboGymRay/IsaacReachFineTanhUR10Sim-v0",
         _ISAAC_REACH_FINE_TANH,
         "isaac-reach-ur10-rotation-tanh with finer tanh terms at the success tolerances",
-    ),
-    # The same with a third position term, +0.1 (1 - tanh(d / 0.01)).
-    "isaac-reach-ur10-centimetre": TaskPreset(
-        "RoboGymRay/IsaacReachCentimetreUR10Sim-v0",
-        _ISAAC_REACH_CENTIMETRE,
-        "isaac-reach-ur10-fine-tanh with a third position term at the goal's 1 cm",
     ),
     # Isaac Lab 3's deploy reach (UR10e): its keypoint reward times 1/60 s per step, plus the
     # action and action-rate L2 terms; episodes end only by the time limit, so the support is the

@@ -23,28 +23,19 @@ SIM, ROB = (
 ORIGINAL = "RoboGymRay/IsaacReachUR10Sim-v0"
 ROTATION_TANH = "RoboGymRay/IsaacReachRotationTanhUR10Sim-v0"
 FINE_TANH = "RoboGymRay/IsaacReachFineTanhUR10Sim-v0"
-CENTIMETRE = "RoboGymRay/IsaacReachCentimetreUR10Sim-v0"
 DEFAULT = np.array([0.0, -1.712, 1.712, 0.0, 0.0, 0.0])
 
 
 def isaac_lab_reward(
-    position: float,
-    rotation: float,
-    change,
-    velocity,
-    tanh_weight=0.0,
-    fine_weight=0.0,
-    cm_weight=0.0,
+    position: float, rotation: float, change, velocity, tanh_weight=0.0, fine_weight=0.0
 ) -> float:
     """Isaac Lab's five reach terms times their weights and the step dt of 2 x 1/60 s; with
     ``tanh_weight``, the rotation variant's sixth, ``tanh_weight (1 - tanh(rotation / 0.25))``;
-    with ``fine_weight``, the fine variant's two more at stds 0.02 m and 0.05 rad; with
-    ``cm_weight``, the centimetre variant's third position term at 0.01 m."""
+    with ``fine_weight``, the fine variant's two more at stds 0.02 m and 0.05 rad."""
     terms = [
         tanh_weight * (1.0 - math.tanh(rotation / 0.25)),
         fine_weight * (1.0 - math.tanh(position / 0.02)),
         fine_weight * (1.0 - math.tanh(rotation / 0.05)),
-        cm_weight * (1.0 - math.tanh(position / 0.01)),
         -0.2 * position,
         0.1 * (1.0 - math.tanh(position / 0.1)),
         -0.1 * rotation,
@@ -95,12 +86,11 @@ def test_ids_spaces_server_and_isaac_terms_are_isaac_reach_ur10s() -> None:
 
 
 @pytest.mark.parametrize(
-    ("env_id", "tanh_weight", "fine_weight", "cm_weight"),
-    [(SIM, 0.0, 0.0, 0.0), (ROTATION_TANH, 0.1, 0.0, 0.0), (FINE_TANH, 0.1, 0.1, 0.0),
-     (CENTIMETRE, 0.1, 0.1, 0.1)],
-)  # fmt: skip
+    ("env_id", "tanh_weight", "fine_weight"),
+    [(SIM, 0.0, 0.0), (ROTATION_TANH, 0.1, 0.0), (FINE_TANH, 0.1, 0.1)],
+)
 def test_a_step_scores_tool1_against_the_command_by_isaac_labs_formula(
-    env_id: str, tanh_weight: float, fine_weight: float, cm_weight: float
+    env_id: str, tanh_weight: float, fine_weight: float
 ) -> None:
     env = gym.make(env_id, rs_state_to_info=True)
     try:
@@ -123,7 +113,7 @@ def test_a_step_scores_tool1_against_the_command_by_isaac_labs_formula(
             velocity = [sd[k] for k in task.velocity_keys]
             change = action - previous
             expected = isaac_lab_reward(
-                position, rotation, change, velocity, tanh_weight, fine_weight, cm_weight
+                position, rotation, change, velocity, tanh_weight, fine_weight
             )
             assert reward == pytest.approx(expected, abs=1e-6)
             assert info["dist_coord"] == pytest.approx(position, abs=1e-6)
@@ -133,7 +123,7 @@ def test_a_step_scores_tool1_against_the_command_by_isaac_labs_formula(
         # On the command, the arm still, the action unchanged: the top reward, the tanh terms.
         env.reset(seed=5, options={"joint_positions": DEFAULT, "ee_target_pose": [*pos, *quat]})
         _, reward, *_ = env.step(np.zeros(6, np.float32))
-        top = (0.1 + tanh_weight + 2 * fine_weight + cm_weight) / 30
+        top = (0.1 + tanh_weight + 2 * fine_weight) / 30
         assert top - 1e-5 < reward <= top
     finally:
         env.close()
@@ -222,7 +212,6 @@ def test_bang_bang_steps_stay_inside_the_reward_range_and_the_presets_support() 
     [
         (ROTATION_TANH, "isaac-reach-ur10-rotation-tanh", 0.1, (-4.0, 1.0)),
         (FINE_TANH, "isaac-reach-ur10-fine-tanh", 0.3, (-4.0, 2.0)),
-        (CENTIMETRE, "isaac-reach-ur10-centimetre", 0.4, (-4.0, 2.0)),
     ],
 )
 def test_the_tanh_variants_range_and_support(
