@@ -294,8 +294,11 @@ def test_ur10_out_of_range_action_is_refused(ur10: RobotServerHandle) -> None:
 
 # A library user's way to serve: start, then wait in the main thread until Ctrl-C.
 WAITING_CHILD = """
+import signal
 from robogym_ray.robots.server import start_robot_server
 
+# Ctrl-C as in a terminal: a parent started in the background may have left SIGINT ignored.
+signal.signal(signal.SIGINT, signal.default_int_handler)
 handle = start_robot_server("mir100")
 print(handle.address, flush=True)
 try:
@@ -320,8 +323,8 @@ def test_ctrl_c_in_wait_stops_the_server_and_closes_the_robot() -> None:
         address = proc.stdout.readline().strip()
         assert stub_for(address).GetState(pb.Empty(), timeout=10).success
         proc.send_signal(signal.SIGINT)
-        assert proc.stdout.readline() == "closed\n"  # the robot closed before Ctrl-C went on
-        assert proc.wait(timeout=20) == 0
+        out, _ = proc.communicate(timeout=30)
+        assert (proc.returncode, out) == (0, "closed\n")  # closed before Ctrl-C went on
         with pytest.raises(grpc.RpcError) as failed:
             stub_for(address).GetState(pb.Empty(), timeout=2)
         assert failed.value.code() == grpc.StatusCode.UNAVAILABLE
