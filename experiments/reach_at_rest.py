@@ -5,7 +5,7 @@ Per episode (reset with seed + i): the position error at the step a 2.1.0 succes
 ended it (first inside 0.02 m and 0.05 rad), and 30 steps, 90 steps and the episode's last step
 after; over the last 20 steps, how far each commanded joint target sits from the joint
 (``|joint_position + 0.5 * action - q|``: a policy that holds still commands where the joints
-are) and how far the end effector moves a step.
+are) and how far the end effector moves a step (its position, not its distance to the command).
 
     python experiments/reach_at_rest.py runs/isaac/RUN/checkpoints/learner.pt --episodes 100 \\
         --out results/RUN-at-rest.json
@@ -34,7 +34,7 @@ def episode(env: Any, policy: Any, seed: int) -> dict[str, Any]:
     task = env.unwrapped
     low, high = env.action_space.low.astype(np.float64), env.action_space.high.astype(np.float64)
     obs, _ = env.reset(seed=seed)
-    dist, rot, gaps = [], [], []
+    dist, rot, gaps, where = [], [], [], []
     done = False
     while not done:
         joints = task.joint_position + obs[: task.joint_position.size].astype(np.float64)
@@ -42,6 +42,7 @@ def episode(env: Any, policy: Any, seed: int) -> dict[str, Any]:
         gaps.append(np.abs(task.joint_targets(action) - joints))
         obs, _, terminated, truncated, info = env.step(action)
         dist.append(info["dist_coord"])
+        where.append(task.position())
         rot.append(info["dist_rot"])
         done = terminated or truncated
     d, r = np.asarray(dist), np.asarray(rot)
@@ -55,7 +56,7 @@ def episode(env: Any, policy: Any, seed: int) -> dict[str, Any]:
         end_rotation=float(r[-1]),
         closest=float(d.min()),
         target_gap=np.mean(gaps[-TAIL:], axis=0).round(5).tolist(),
-        step_motion=float(np.mean(np.abs(np.diff(d[-TAIL:])))),
+        step_motion=float(np.mean(np.linalg.norm(np.diff(where[-TAIL:], axis=0), axis=1))),
     )
     return row
 

@@ -93,21 +93,14 @@ class IsaacReachTask(PoseTask):
     def hold_map(self) -> tuple[list[int], list[float], list[float]]:
         """The action that holds the arm where it is, as an affine map of the observation:
         ``(index, gain, offset)`` per action dimension, so that ``offset + gain * obs[index]``
-        on the action Box's [-1, 1] scale targets each joint at its observed position (the
-        first entries of the observation: positions relative to ``joint_position``).
+        (the action Box's units) targets each joint at its observed position (the first
+        entries of the observation: positions relative to ``joint_position``).
 
-        What ``D4PGConfig.hold_residual`` centres a policy on. Derived from the env's own maps
-        (``action_for``, the Box), not restated."""
-        from robogym_ray.learner.behaviour import from_env_action
-
-        low, high = self.action_space.low, self.action_space.high
-        # The action is affine in the joints (action_for): read it at observed 0 and 1.
-        at = [
-            from_env_action(self.action_for(self.joint_position + v * self.active), low, high)
-            for v in (0.0, 1.0)
-        ]
+        What ``D4PGConfig.hold_residual`` centres a policy on. Read off the env's own map
+        (``action_for``, affine in the joints) at observed 0 and 1, not restated."""
+        at_zero, at_one = (self.action_for(self.joint_position + v * self.active) for v in (0, 1))
         index = [int(i) for i in np.flatnonzero(self.active)]
-        return index, (at[1] - at[0]).tolist(), at[0].tolist()
+        return index, (at_one - at_zero).tolist(), at_zero.tolist()
 
     def _obs_bounds(self) -> tuple[list[float], list[float]]:
         """Positions relative to ``joint_position`` within the limits widened by the tolerance

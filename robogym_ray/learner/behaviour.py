@@ -50,8 +50,8 @@ class BehaviourPolicy:
             obs_t = torch.as_tensor(obs, dtype=torch.float32)
             action = self.policy(obs_t).numpy()
             # The box arrives with the weights; around a hold its centre moves with obs.
-            center = self.policy.center(obs_t).numpy()
-            half = self.policy.box_half.numpy()
+            center = self.policy.center(obs_t).numpy().astype(np.float64)
+            half = self.policy.box_half.numpy().astype(np.float64)
         if explore and self.sigma > 0:
             # sigma is on the action box's own scale (the whole Box's when there is none).
             action = action + self.sigma * half * self.rng.standard_normal(action.shape)

@@ -232,7 +232,8 @@ class D4PGConfig:
                 and (not self.hold_index or self.hold_residual > 0.0),
                 "hold_index",
                 (self.hold_index, self.hold_gain, self.hold_offset),
-                "hold_index, hold_gain and hold_offset of equal length, with hold_residual > 0",
+                "hold_index, hold_gain and hold_offset of equal length, with hold_residual > 0 "
+                "(the trainer fills them in for a hold: drop them from a config without one)",
             ),
             (self.num_threads >= 0, "num_threads", self.num_threads, ">= 0"),
             (

@@ -8,6 +8,8 @@ from typing import TYPE_CHECKING, Any
 import torch
 from torch import nn
 
+from robogym_ray.errors import ConfigError
+
 if TYPE_CHECKING:
     from robogym_ray.learner.config import D4PGConfig
 
@@ -93,6 +95,11 @@ class ActionBox(nn.Module):
     def _load_from_state_dict(self, state_dict: Any, prefix: str, *args: Any) -> None:
         # torch hands each module a copy of the state dict: filling it in here changes no
         # caller's dict, and works for a net loaded inside another module too.
+        # Weights from before the hold had none, whatever this net's config asks: no hold
+        # (a loaded net keeps the part it was trained in, as it keeps its box).
+        if prefix + "box_center" in state_dict:
+            for name in ("hold_index", "hold_gain"):
+                state_dict.setdefault(prefix + name, torch.zeros_like(getattr(self, name)))
         for name in self.BOX_KEYS:
             state_dict.setdefault(prefix + name, getattr(self, name))
         super()._load_from_state_dict(state_dict, prefix, *args)
@@ -139,9 +146,10 @@ class DistributionalCritic(ActionBox):
 
 def set_action_part(net: ActionBox, config: D4PGConfig) -> None:
     """Give ``net`` the part of the action Box that ``config`` names: its action box, or its
-    hold (ValueError for a hold the trainer has not filled in from the task's env)."""
+    hold (a ConfigError for a hold the trainer has not filled in from the task's env, a
+    ValueError for a part of another number of dimensions)."""
     if config.hold_residual > 0 and not config.hold_index:
-        raise ValueError(
+        raise ConfigError(
             "hold_residual needs hold_index, hold_gain and hold_offset, which the trainer "
             "fills in from the task's env (its hold_map)"
         )

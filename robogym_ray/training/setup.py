@@ -12,6 +12,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import ray
 
 from robogym_ray.config import FLAGS, Words, check_dir_path, quote
@@ -20,6 +21,7 @@ from robogym_ray.errors import ConfigError
 from robogym_ray.experience.relabel import goal_task
 from robogym_ray.experience.rollout import box_dims, make_gym_env
 from robogym_ray.learner import checkpoint
+from robogym_ray.learner.behaviour import from_env_action
 from robogym_ray.learner.checkpoint import RUN_CHECKPOINT, replay_path
 from robogym_ray.learner.config import D4PGConfig
 from robogym_ray.learner.learner import make_adam
@@ -169,8 +171,15 @@ def with_hold(d4pg: D4PGConfig, env: Any, env_id: str) -> D4PGConfig:
             "action that holds its joints still), so the policy cannot work around one; it "
             "needs a task whose action is a joint target, such as isaac-reach-ur10"
         )
-    index, gain, offset = hold_map()
-    return replace(d4pg, hold_index=tuple(index), hold_gain=tuple(gain), hold_offset=tuple(offset))
+    index, gain, offset = (np.asarray(v, dtype=np.float64) for v in hold_map())
+    # The env's map is in its Box's units; the nets work on the Box's [-1, 1] scale.
+    low, high = (getattr(env.action_space, k).astype(np.float64) for k in ("low", "high"))
+    return replace(
+        d4pg,
+        hold_index=tuple(int(i) for i in index),
+        hold_gain=tuple((2.0 * gain / (high - low)).tolist()),
+        hold_offset=tuple(from_env_action(offset, low, high).tolist()),
+    )
 
 
 def check_eval_env(eval_env_id: str, task_env: Any, task_id: str, words: Words = FLAGS) -> str:
