@@ -5,7 +5,8 @@ Per episode (reset with seed + i): the position error at the step a 2.1.0 succes
 ended it (first inside 0.02 m and 0.05 rad), and 30 steps, 90 steps and the episode's last step
 after; over the last 20 steps, how far each commanded joint target sits from the joint
 (``|joint_position + 0.5 * action - q|``: a policy that holds still commands where the joints
-are) and how far the end effector moves a step (its position, not its distance to the command).
+are), how far the end effector moves a step (its position, not its distance to the command),
+and how far the mean of its positions is from the command (where it hovers, if it moves).
 
     python experiments/reach_at_rest.py runs/isaac/RUN/checkpoints/learner.pt --episodes 100 \\
         --out results/RUN-at-rest.json
@@ -42,7 +43,7 @@ def episode(env: Any, policy: Any, seed: int) -> dict[str, Any]:
         gaps.append(np.abs(task.joint_targets(action) - joints))
         obs, _, terminated, truncated, info = env.step(action)
         dist.append(info["dist_coord"])
-        where.append(task.position())
+        where.append(task.position())  # the frame of the command's info["target_coord"]
         rot.append(info["dist_rot"])
         done = terminated or truncated
     d, r = np.asarray(dist), np.asarray(rot)
@@ -57,6 +58,7 @@ def episode(env: Any, policy: Any, seed: int) -> dict[str, Any]:
         closest=float(d.min()),
         target_gap=np.mean(gaps[-TAIL:], axis=0).round(5).tolist(),
         step_motion=float(np.mean(np.linalg.norm(np.diff(where[-TAIL:], axis=0), axis=1))),
+        hover_centre=float(np.linalg.norm(np.mean(where[-TAIL:], axis=0) - info["target_coord"])),
     )
     return row
 
@@ -74,6 +76,7 @@ def summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "end_rotation": median("end_rotation"),
         "closest": median("closest"),
         "step_motion": median("step_motion"),
+        "hover_centre": median("hover_centre"),
         "target_gap": np.median(gaps, axis=0).round(4).tolist(),
     }
 
