@@ -90,18 +90,6 @@ class IsaacReachTask(PoseTask):
         """``joint_position + isaac_scale * action`` (rad, task order)."""
         return self.joint_position + self.scale * np.asarray(action, dtype=np.float64)
 
-    def hold_map(self) -> tuple[list[int], list[float], list[float]]:
-        """The action that holds the arm where it is, as an affine map of the observation:
-        ``(index, gain, offset)`` per action dimension, so that ``offset + gain * obs[index]``
-        (the action Box's units) targets each joint at its observed position (the first
-        entries of the observation: positions relative to ``joint_position``).
-
-        What ``D4PGConfig.hold_residual`` centres a policy on. Read off the env's own map
-        (``action_for``, affine in the joints) at observed 0 and 1, not restated."""
-        at_zero, at_one = (self.action_for(self.joint_position + v * self.active) for v in (0, 1))
-        index = [int(i) for i in np.flatnonzero(self.active)]
-        return index, (at_one - at_zero).tolist(), at_zero.tolist()
-
     def _obs_bounds(self) -> tuple[list[float], list[float]]:
         """Positions relative to ``joint_position`` within the limits widened by the tolerance
         (a fraction of each joint's range), then velocities, the command and the last action."""

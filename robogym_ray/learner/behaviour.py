@@ -33,9 +33,16 @@ class BehaviourPolicy:
         self.sigma = sigma
         self.act_dim = act_dim
         self.rng = np.random.default_rng(seed)
+        self._read_box()
 
     def set_weights(self, weights: dict[str, np.ndarray]) -> None:
         self.policy.load_state_dict({k: torch.as_tensor(v) for k, v in weights.items()})
+        self._read_box()
+
+    def _read_box(self) -> None:
+        # The box arrives with the weights only; read once here, not on every step.
+        self.center = self.policy.box_center.numpy().astype(np.float64)
+        self.half = self.policy.box_half.numpy().astype(np.float64)
 
     def act(self, obs: np.ndarray, explore: bool) -> np.ndarray:
         """Policy action for one observation, plus N(0, sigma) noise when exploring, clipped."""
@@ -47,16 +54,11 @@ class BehaviourPolicy:
         The noise is drawn as one (B x act_dim) block, so a batch of one draws exactly what
         ``act`` draws."""
         with torch.inference_mode():
-            obs_t = torch.as_tensor(obs, dtype=torch.float32)
-            action = self.policy(obs_t).numpy()
-            # The box arrives with the weights; around a hold its centre moves with obs.
-            center = self.policy.center(obs_t).numpy().astype(np.float64)
-            half = self.policy.box_half.numpy().astype(np.float64)
+            action = self.policy(torch.as_tensor(obs, dtype=torch.float32)).numpy()
         if explore and self.sigma > 0:
             # sigma is on the action box's own scale (the whole Box's when there is none).
-            action = action + self.sigma * half * self.rng.standard_normal(action.shape)
-        low, high = np.maximum(center - half, -1.0), np.minimum(center + half, 1.0)
-        return np.clip(action, low, high).astype(np.float32)
+            action = action + self.sigma * self.half * self.rng.standard_normal(action.shape)
+        return np.clip(action, self.center - self.half, self.center + self.half).astype(np.float32)
 
 
 def to_env_action(action: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:

@@ -18,7 +18,6 @@ averaging every step (the Pendulum-v1 preset in ``training.local`` uses 0.005, a
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 from robogym_ray.config import check_ranges
@@ -108,25 +107,6 @@ class D4PGConfig:
     checkpoints, ``evaluate`` and ``export`` need nothing more, and the env's spaces stay."""
     action_box_high: tuple[float, ...] = ()
     """The upper bounds of ``action_box_low``'s box (same length, each above its low)."""
-    hold_residual: float = 0.0
-    """When positive, the policy acts around holding still, not over a box: its tanh spans
-    +- this much (in the units of the observed joint positions: rad for an arm) around the
-    action whose joint targets are where the joints are now, and the critic reads actions as
-    that step. For tasks whose action is an absolute joint target that a controller follows:
-    to hold still such a policy must output the joints' own positions, to the precision the
-    task asks, across its whole box; around the hold, holding still is the output 0 and the
-    arm keeps moving until the output is 0, so the output's errors slow the approach instead of
-    moving where it rests (docs/results-log.md). The trainer fills ``hold_index`` / ``_gain`` /
-    ``_offset`` from the task's env (its ``hold_map``; a task without one is a ConfigError).
-    Not with an action box."""
-    hold_index: tuple[int, ...] = ()
-    """Filled in by the trainer with ``hold_residual``: per action dimension, the observation
-    entry (that joint's position) the holding action follows."""
-    hold_gain: tuple[float, ...] = ()
-    """Filled in by the trainer: the holding action's change per unit of that entry, on the
-    [-1, 1] scale of the whole Box."""
-    hold_offset: tuple[float, ...] = ()
-    """Filled in by the trainer: the holding action when that entry is 0 ([-1, 1] scale)."""
 
     # --- runtime --------------------------------------------------------------------------
     device: str = "auto"
@@ -161,11 +141,6 @@ class D4PGConfig:
     them. T > 0 (at least ``sgd_steps_per_sample``): a learner thread steps between inserts, up
     to T steps ahead of the samples-per-insert ratio, and an insert waits while more than T
     steps are owed - the run keeps its ratio within T steps (Reverb's error buffer)."""
-
-    @property
-    def hold_half(self) -> tuple[float, ...]:
-        """The policy's half-width around the hold, per action dimension ([-1, 1] scale)."""
-        return tuple(self.hold_residual * abs(g) for g in self.hold_gain)
 
     def __post_init__(self) -> None:
         checks = [
@@ -214,26 +189,6 @@ class D4PGConfig:
                 "action_box_low",
                 (self.action_box_low, self.action_box_high),
                 "low and high of equal length, -1 <= low < high <= 1 in each dimension",
-            ),
-            (
-                math.isfinite(self.hold_residual) and self.hold_residual >= 0.0,
-                "hold_residual",
-                self.hold_residual,
-                ">= 0",
-            ),
-            (
-                self.hold_residual == 0.0 or not self.action_box_low,
-                "hold_residual",
-                (self.hold_residual, self.action_box_low),
-                "0 with an action box (the policy works in one or around the hold, not both)",
-            ),
-            (
-                len(self.hold_index) == len(self.hold_gain) == len(self.hold_offset)
-                and (not self.hold_index or self.hold_residual > 0.0),
-                "hold_index",
-                (self.hold_index, self.hold_gain, self.hold_offset),
-                "hold_index, hold_gain and hold_offset of equal length, with hold_residual > 0 "
-                "(the trainer fills them in for a hold: drop them from a config without one)",
             ),
             (self.num_threads >= 0, "num_threads", self.num_threads, ">= 0"),
             (

@@ -31,7 +31,7 @@ from robogym_ray.learner.distributional import (
     expected_value,
     make_support,
 )
-from robogym_ray.learner.networks import DistributionalCritic, Policy, set_action_part
+from robogym_ray.learner.networks import DistributionalCritic, Policy
 from robogym_ray.learner.replay import Backend, PrioritizedReplay
 from robogym_ray.learner.schedules import importance_beta, lr_scale
 from robogym_ray.learner.whole_step import WholeStep
@@ -93,7 +93,7 @@ class D4PGLearner:
             obs_dim, act_dim, c.critic_hidden, c.num_atoms, c.layer_norm
         ).to(self.device)
         for net in (self.policy, self.critic):
-            set_action_part(net, c)
+            net.set_action_box(c.action_box_low, c.action_box_high)
         self.target_policy = copy.deepcopy(self.policy).requires_grad_(False)
         self.target_critic = copy.deepcopy(self.critic).requires_grad_(False)
         self.policy_average: Policy | None = (

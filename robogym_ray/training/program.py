@@ -103,8 +103,6 @@ class Program:
         cfg, d4pg, env_id = self.cfg, self.d4pg, self.preset.env_id
         probe = make_gym_env(env_id)()  # dimensions only: it never resets, so no server
         self.obs_dim, self.act_dim = box_dims(probe)
-        # The hold (if asked for) is the task env's; the learner's nets carry it from here.
-        self.d4pg = d4pg = setup.with_hold(d4pg, probe, env_id)
         probe.close()
         # check_inputs checked its spaces against the task's; this resolves a short name.
         self.eval_env_id = resolve_task(cfg.eval_env_id).env_id if cfg.eval_env_id else env_id

@@ -8,11 +8,10 @@ import json
 import logging
 import os
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import ray
 
 from robogym_ray.config import FLAGS, Words, check_dir_path, quote
@@ -21,11 +20,10 @@ from robogym_ray.errors import ConfigError
 from robogym_ray.experience.relabel import goal_task
 from robogym_ray.experience.rollout import box_dims, make_gym_env
 from robogym_ray.learner import checkpoint
-from robogym_ray.learner.behaviour import from_env_action
 from robogym_ray.learner.checkpoint import RUN_CHECKPOINT, replay_path
 from robogym_ray.learner.config import D4PGConfig
 from robogym_ray.learner.learner import make_adam
-from robogym_ray.learner.networks import DistributionalCritic, Policy, set_action_part
+from robogym_ray.learner.networks import DistributionalCritic, Policy
 from robogym_ray.learner.schedules import linear_ramp
 from robogym_ray.storage import RunStorage, check_writable, is_uri, local_file, resolve_root
 from robogym_ray.text import clip_text
@@ -150,36 +148,12 @@ def check_inputs(
                 raise ConfigError(f"{given}: {exc}") from None
         if cfg.eval_env_id is not None:
             check_eval_env(cfg.eval_env_id, probe, preset.env_id, words)
-        d4pg = with_hold(d4pg, probe, preset.env_id)
     finally:
         probe.close()
     if init_from:
         check_init_from(init_from, d4pg, obs_dim, act_dim, state, label)
     else:
         learner_networks(d4pg, obs_dim, act_dim)
-
-
-def with_hold(d4pg: D4PGConfig, env: Any, env_id: str) -> D4PGConfig:
-    """``d4pg`` with its hold filled in from the task's env (``hold_map``) when
-    ``hold_residual`` asks for one; unchanged otherwise. ConfigError for a task without one."""
-    if d4pg.hold_residual == 0:
-        return d4pg
-    hold_map = getattr(env.unwrapped, "hold_map", None)
-    if hold_map is None:
-        raise ConfigError(
-            f"d4pg.hold_residual={quote(d4pg.hold_residual)}: {env_id} has no hold_map (the "
-            "action that holds its joints still), so the policy cannot work around one; it "
-            "needs a task whose action is a joint target, such as isaac-reach-ur10"
-        )
-    index, gain, offset = (np.asarray(v, dtype=np.float64) for v in hold_map())
-    # The env's map is in its Box's units; the nets work on the Box's [-1, 1] scale.
-    low, high = (getattr(env.action_space, k).astype(np.float64) for k in ("low", "high"))
-    return replace(
-        d4pg,
-        hold_index=tuple(int(i) for i in index),
-        hold_gain=tuple((2.0 * gain / (high - low)).tolist()),
-        hold_offset=tuple(from_env_action(offset, low, high).tolist()),
-    )
 
 
 def check_eval_env(eval_env_id: str, task_env: Any, task_id: str, words: Words = FLAGS) -> str:
@@ -226,10 +200,9 @@ def learner_networks(
         ) from None
     try:
         for net in (policy, critic):
-            set_action_part(net, d4pg)
-    except ValueError as exc:  # a box or hold for another number of action dimensions
-        what = "hold_residual" if d4pg.hold_residual else "action_box_low/high"
-        raise ConfigError(f"d4pg.{what}: {exc}") from None
+            net.set_action_box(d4pg.action_box_low, d4pg.action_box_high)
+    except ValueError as exc:  # a box for another number of action dimensions
+        raise ConfigError(f"d4pg.action_box_low/high: {exc}") from None
     return policy, critic
 
 

@@ -141,30 +141,6 @@ def test_actions_are_offsets_from_the_default_pose():
         env.close()
 
 
-def test_the_hold_map_targets_the_observed_joints_and_holds_the_arm_still():
-    env = gym.make(UR, ee_distance_threshold=1e-6, ee_rotation_threshold=1e-6)  # no success end
-    try:
-        task = env.unwrapped
-        index, gain, offset = (np.asarray(v) for v in task.hold_map())
-        assert index.tolist() == list(range(6))
-        # 2.1.0's map, written out: the action is (q - default) / 0.5, so gain 2, offset 0.
-        np.testing.assert_allclose(gain, 1 / SCALE)
-        np.testing.assert_allclose(offset, 0.0, atol=1e-12)
-        obs, _ = env.reset(seed=3)
-        moved = np.array([0.1, 0.1, -0.6, 0.2, 0.2, 0.2], np.float32)
-        for _ in range(15):  # somewhere off the default pose first, still moving
-            obs, _, terminated, truncated, _ = env.step(moved)
-            assert not (terminated or truncated)
-        for _ in range(60):  # then the hold of each observation: the arm stops where it is
-            before = obs[:6].copy()
-            obs, *_ = env.step((offset + gain * obs[index]).astype(np.float32))
-        np.testing.assert_allclose(obs[:6], before, atol=1e-5)
-        assert np.abs(obs[6:12]).max() < 1e-3
-        assert np.abs(obs[:6] - SCALE * moved).max() > 0.05  # held short of the old targets
-    finally:
-        env.close()
-
-
 def tool1_pose(q):
     xyz, quat = forward_kinematics("ur10", q)["tool1"]
     return [*xyz, *quat]

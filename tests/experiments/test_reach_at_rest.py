@@ -1,0 +1,62 @@
+"""experiments/reach_at_rest.py on the real UR10 server: an arm held still measures as still and
+a policy that alternates its targets as moving, and the script writes its summary and rows."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+from robogym_ray.learner.behaviour import from_env_action
+from tests.experiments.conftest import save_learner
+from tests.experiments.test_scripts import script
+
+
+@pytest.fixture
+def env():
+    rest = script("reach_at_rest")
+    made = gym.make(rest.ENV_ID, ee_distance_threshold=1e-6, ee_rotation_threshold=1e-6)
+    yield made
+    made.close()
+
+
+def _policy(env, offset_rad):
+    """On the [-1, 1] scale: target every joint where it is observed, plus ``offset_rad(t)``."""
+    low, high = env.action_space.low, env.action_space.high
+    scale, steps = env.unwrapped.scale, iter(range(10**6))
+
+    def act(obs):
+        return from_env_action((obs[:6] + offset_rad(next(steps))) / scale, low, high)
+
+    return act
+
+
+def test_an_arm_held_still_measures_still_and_an_alternating_one_moving(env) -> None:
+    rest = script("reach_at_rest")
+    held = rest.episode(env, _policy(env, lambda t: 0.0), seed=0)
+    assert held["steps"] == 600 and held["at_success"] is None  # the command is elsewhere
+    assert max(held["target_gap"]) < 1e-4 and held["step_motion"] < 1e-5
+    # Still: the distance at the end is the closest ever and where it hovers.
+    assert held["end"] == pytest.approx(held["closest"], abs=1e-5)
+    assert held["hover_centre"] == pytest.approx(held["end"], abs=1e-4)
+    # Targets 0.2 rad to either side by turns: the arm jitters and the measure says so.
+    swing = rest.episode(env, _policy(env, lambda t: 0.2 * (-1) ** t), seed=0)
+    assert min(swing["target_gap"]) > 0.1 and swing["step_motion"] > 1e-3
+    assert held["end"] == pytest.approx(swing["hover_centre"], abs=0.02)  # about where it was
+
+
+def test_the_script_prints_its_summary_and_keeps_every_row(tmp_path: Path, capsys) -> None:
+    save_learner(tmp_path / "learner.pt", 25, 6)
+    out = tmp_path / "rest.json"
+    argv = [str(tmp_path / "learner.pt"), "--episodes", "1", "--out", str(out)]
+    assert script("reach_at_rest").main(argv) == 0
+    printed = capsys.readouterr().out
+    printed = json.loads(printed[printed.find("{") :])  # after pybullet's banner, if any
+    record = json.loads(out.read_text())
+    assert record["summary"]["episodes"] == 1 and len(record["episodes"]) == 1
+    row = record["episodes"][0]
+    assert len(row["target_gap"]) == 6 and np.isfinite(row["end"])
+    assert printed == record["summary"]
