@@ -9,11 +9,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from robogym_ray.envs.isaac_reach_reward import (
-    CURRICULUM_END_WEIGHTS,
-    IsaacLabReachMDP,
-    step_reward_range,
-)
+from robogym_ray.envs.isaac_reach_reward import IsaacLabReachMDP, step_reward_range
 from robogym_ray.envs.pose_commands import TanhTerm
 from robogym_ray.envs.ur_common import JOINT_MAX
 from robogym_ray.envs.ur_modular import IsaacReachUR
@@ -98,33 +94,19 @@ class IsaacReachFineTanhUR(IsaacReachRotationTanhUR):
     )
 
 
-class IsaacReachSettleUR(IsaacReachFineTanhUR):
-    """``IsaacReachFineTanhUR`` with the effort weights that Isaac Lab's reach curriculum ends on,
-    from the first step: ``-0.005 |a_t - a_t-1|^2 - 0.001 |qdot|^2`` per second instead of 1e-4
-    each, so that a policy which alternates its joint targets near the command pays for it:
-    alternating 1 rad of raw action on six joints costs 0.03 per second, about what the fine
-    terms pay for 5 mm. Spaces, commands, ends and resets are ``IsaacReachIsaacRewardUR``'s.
-    """
-
-    effort_weights = CURRICULUM_END_WEIGHTS
-
-
 def return_range(
     discount: float = 0.99, task: type[IsaacLabReachMDP] = IsaacReachIsaacRewardUR
 ) -> tuple[float, float]:
     """The bounds of a discounted return of ``IsaacReachIsaacRewardUR10Sim-v0`` (episodes end
     only by the time limit, so the horizon is 1 / (1 - discount)), from its action bounds and
     the UR10's speed limits at the env's 0.2 of them, at 30 Hz; ``task``: the variant, whose
-    tanh terms (>= 0, their weights at best) raise the best only, and whose effort weights
-    set the worst."""
+    tanh terms (>= 0, their weights at best) raise the best only."""
     default = np.asarray(IsaacReachUR.default_joints)
     scale = 0.5  # isaac_scale's default
     low, high = (-JOINT_MAX - default) / scale, (JOINT_MAX - default) / scale
     speeds = IsaacReachUR.velocity_scale * np.asarray(UR_MODELS["ur10"].max_velocity)
     rate = IsaacReachUR.action_rate
-    worst, best = step_reward_range(
-        low, high, speeds, MAX_POSITION_ERROR, rate, task.effort_weights
-    )
+    worst, best = step_reward_range(low, high, speeds, MAX_POSITION_ERROR, rate)
     best += sum(term.weight for term in task.tanh_terms) / rate
     horizon = 1.0 / (1.0 - discount)
     return worst * horizon, best * horizon
