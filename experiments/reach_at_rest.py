@@ -1,17 +1,27 @@
-"""Where an IsaacReach policy rests: episodes of ``IsaacReachUR10Sim-v0`` with no success end
-(both tolerances 1e-6), so each runs its 600 steps and the arm shows where it settles.
+"""Where a reach policy rests.
 
-Per episode (reset with seed + i): the position error at the step a 2.1.0 success would have
-ended it (first inside 0.02 m and 0.05 rad), and 30 steps, 90 steps and the episode's last step
-after; over the last 20 steps, how far each commanded joint target sits from the joint
+IsaacReach (default): episodes of ``IsaacReachUR10Sim-v0`` with no success end (both
+tolerances 1e-6), so each runs its 600 steps and the arm shows where it settles. Per episode
+(reset with seed + i): the position error at the step a 2.1.0 success would have ended it (first
+inside 0.02 m and 0.05 rad), and 30 steps, 90 steps and the episode's last step after; over the
+last 20 steps, how far each commanded joint target sits from the joint
 (``|joint_position + 0.5 * action - q|``: a policy that holds still commands where the joints
 are), how far the end effector moves a step (its position, not its distance to the command),
 and how far the mean of its positions is from the command (where it hovers, if it moves).
 
+The deploy reach (``--deploy``): per 4-s command window of ``IsaacDeployReachUR10eSim-v0``, the
+window-end errors, the closest ``wrist_3_link`` came inside the window, and over the window's
+last 30 steps (0.5 s) its motion a step, where it hovers and the mean |action| on the [-1, 1]
+scale. Each action there is relative to the measured joints, so 0 holds the arm: a policy that
+has arrived and stopped shows ~0 motion and ~0 action. Episode i resets with seed + i, 1000 + i
+by default (``deploy_reach_errors.py``'s episodes).
+
     python experiments/reach_at_rest.py runs/isaac/RUN/checkpoints/learner.pt --episodes 100 \\
         --out results/RUN-at-rest.json
+    python experiments/reach_at_rest.py runs/isaac/RUN/checkpoints/learner.pt --deploy \\
+        --episodes 100 --out results/RUN-at-rest.json
 
-Prints the medians as JSON; ``--out`` also keeps every episode's row.
+Prints the medians as JSON; ``--out`` also keeps every episode's (or window's) row.
 """
 
 from __future__ import annotations
@@ -24,8 +34,11 @@ from typing import Any
 import numpy as np
 
 ENV_ID = "RoboGymRay/IsaacReachUR10Sim-v0"
+DEPLOY_ENV_ID = "RoboGymRay/IsaacDeployReachUR10eSim-v0"
 TOLERANCES = (0.02, 0.05)  # 2.1.0's success: m and rad
 TAIL = 20  # the last steps, read as "at rest"
+DEPLOY_TAIL = 30  # a deploy window's last steps (0.5 s at 60 Hz)
+DEPLOY_KEYS = ("end", "end_rotation", "closest", "step_motion", "hover_centre", "mean_abs_action")
 
 
 def episode(env: Any, policy: Any, seed: int) -> dict[str, Any]:
@@ -63,6 +76,46 @@ def episode(env: Any, policy: Any, seed: int) -> dict[str, Any]:
     return row
 
 
+def deploy_windows(env: Any, policy: Any, seed: int) -> list[dict[str, Any]]:
+    """One deploy-reach episode's rows, one per command window that ends in it."""
+    from robogym_ray.learner.behaviour import to_env_action
+
+    task = env.unwrapped
+    low, high = env.action_space.low.astype(np.float64), env.action_space.high.astype(np.float64)
+    obs, _ = env.reset(seed=seed)
+    rows: list[dict[str, Any]] = []
+    where, gaps, dist, acts = [], [], [], []
+    done = False
+    while not done:
+        unit = np.clip(np.asarray(policy(np.asarray(obs, np.float32)), np.float64), -1, 1)
+        goal = np.array(task.scored_pose[:3], np.float64)  # the command in force this step
+        obs, _, terminated, truncated, info = env.step(to_env_action(unit, low, high))
+        where.append(np.asarray(info["achieved_goal"][:3], np.float64))
+        gaps.append(where[-1] - goal)
+        dist.append(info["dist_coord"])
+        acts.append(float(np.mean(np.abs(unit))))
+        if "window_position_error" in info:
+            tail = np.asarray(where[-DEPLOY_TAIL:])
+            rows.append({
+                "seed": seed,
+                "end": float(info["window_position_error"]),
+                "end_rotation": float(info["window_rotation_error"]),
+                "closest": float(min(dist)),
+                "step_motion": float(np.mean(np.linalg.norm(np.diff(tail, axis=0), axis=1))),
+                "hover_centre": float(np.linalg.norm(np.mean(gaps[-DEPLOY_TAIL:], axis=0))),
+                "mean_abs_action": float(np.mean(acts[-DEPLOY_TAIL:])),
+            })  # fmt: skip
+            where, gaps, dist, acts = [], [], [], []
+        done = terminated or truncated
+    return rows
+
+
+def deploy_summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    """The medians over windows."""
+    medians = {key: round(float(np.median([row[key] for row in rows])), 5) for key in DEPLOY_KEYS}
+    return {"windows": len(rows), **medians}
+
+
 def summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
     def median(key: str) -> float | None:
         values = [row[key] for row in rows if row[key] is not None]
@@ -84,10 +137,14 @@ def summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("policy", help="learner.pt, or an exported policy with its .json")
+    parser.add_argument("--deploy", action="store_true", help="The deploy reach, per window.")
     parser.add_argument("--episodes", type=int, default=100)
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument(
+        "--seed", type=int, default=None, help="Episode i resets with seed + i (0; --deploy 1000)"
+    )
     parser.add_argument("--out", type=Path, help="JSON file for the summary and every row")
     args = parser.parse_args(argv)
+    seed = args.seed if args.seed is not None else (1000 if args.deploy else 0)
 
     import gymnasium as gym
 
@@ -95,16 +152,23 @@ def main(argv: list[str] | None = None) -> int:
     from robogym_ray.export import load_policy
 
     policy = load_policy(args.policy)
-    env = gym.make(ENV_ID, ee_distance_threshold=1e-6, ee_rotation_threshold=1e-6)
+    if args.deploy:
+        env = gym.make(DEPLOY_ENV_ID)
+    else:
+        env = gym.make(ENV_ID, ee_distance_threshold=1e-6, ee_rotation_threshold=1e-6)
     try:
-        rows = [episode(env, policy, args.seed + i) for i in range(args.episodes)]
+        if args.deploy:
+            rows = [r for i in range(args.episodes) for r in deploy_windows(env, policy, seed + i)]
+        else:
+            rows = [episode(env, policy, seed + i) for i in range(args.episodes)]
     finally:
         env.close()
-    result = summary(rows)
+    result = deploy_summary(rows) if args.deploy else summary(rows)
     print(json.dumps(result, indent=1))
     if args.out:
         args.out.parent.mkdir(parents=True, exist_ok=True)
-        args.out.write_text(json.dumps({"summary": result, "episodes": rows}, indent=1))
+        key = "windows" if args.deploy else "episodes"
+        args.out.write_text(json.dumps({"summary": result, key: rows}, indent=1))
     return 0
 
 

@@ -1,5 +1,6 @@
-"""experiments/reach_at_rest.py on the real UR10 server: an arm held still measures as still and
-a policy that alternates its targets as moving, and the script writes its summary and rows."""
+"""experiments/reach_at_rest.py on the real UR10 server and the real UR10e servo: an arm held
+still measures as still and a policy that alternates its targets (or swings its actions) as
+moving, and the script writes its summary and rows for both tasks."""
 
 from __future__ import annotations
 
@@ -48,15 +49,42 @@ def test_an_arm_held_still_measures_still_and_an_alternating_one_moving(env) -> 
     assert held["end"] == pytest.approx(swing["hover_centre"], abs=0.02)  # about where it was
 
 
-def test_the_script_prints_its_summary_and_keeps_every_row(tmp_path: Path, capsys) -> None:
-    save_learner(tmp_path / "learner.pt", 25, 6)
+def test_a_deploy_arm_held_still_measures_still_at_each_window_and_a_swinging_one_moving() -> None:
+    rest = script("reach_at_rest")
+    env = gym.make(rest.DEPLOY_ENV_ID)
+    try:
+        held = rest.deploy_windows(env, lambda obs: np.zeros(6), seed=0)
+        steps = iter(range(10**6))
+        swing = rest.deploy_windows(env, lambda obs: np.full(6, 0.5 * (-1) ** next(steps)), 0)
+    finally:
+        env.close()
+    assert len(held) == 3 and len(swing) == 3  # 12 s of 4-s windows
+    for row in held:
+        assert row["step_motion"] < 1e-6 and row["mean_abs_action"] == 0.0
+        # Still: where it hovers is where it ends, and each window's closest is its end.
+        assert row["hover_centre"] == pytest.approx(row["end"], abs=1e-6)
+        assert row["closest"] == pytest.approx(row["end"], abs=1e-6)
+    for row in swing:
+        assert row["step_motion"] > 1e-3 and row["mean_abs_action"] == pytest.approx(0.5)
+        assert row["closest"] <= row["end"] + 1e-9
+
+
+@pytest.mark.parametrize(
+    ("flags", "obs_dim", "rows", "count"),
+    [([], 25, "episodes", ("episodes", 1)), (["--deploy"], 19, "windows", ("windows", 3))],
+)
+def test_the_script_prints_its_summary_and_keeps_every_row(
+    tmp_path: Path, capsys, flags: list[str], obs_dim: int, rows: str, count: tuple[str, int]
+) -> None:
+    save_learner(tmp_path / "learner.pt", obs_dim, 6)
     out = tmp_path / "rest.json"
-    argv = [str(tmp_path / "learner.pt"), "--episodes", "1", "--out", str(out)]
+    argv = [str(tmp_path / "learner.pt"), *flags, "--episodes", "1", "--out", str(out)]
     assert script("reach_at_rest").main(argv) == 0
     printed = capsys.readouterr().out
     printed = json.loads(printed[printed.find("{") :])  # after pybullet's banner, if any
     record = json.loads(out.read_text())
-    assert record["summary"]["episodes"] == 1 and len(record["episodes"]) == 1
-    row = record["episodes"][0]
-    assert len(row["target_gap"]) == 6 and np.isfinite(row["end"])
+    assert record["summary"][count[0]] == count[1] and len(record[rows]) == count[1]
+    assert all(np.isfinite(row["end"]) for row in record[rows])
+    if not flags:
+        assert len(record["episodes"][0]["target_gap"]) == 6
     assert printed == record["summary"]
