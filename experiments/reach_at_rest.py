@@ -41,6 +41,11 @@ DEPLOY_TAIL = 30  # a deploy window's last steps (0.5 s at 60 Hz)
 DEPLOY_KEYS = ("end", "end_rotation", "closest", "step_motion", "hover_centre", "mean_abs_action")
 
 
+def mean_step(points: Any) -> float:
+    """The mean distance between consecutive points (m a step)."""
+    return float(np.mean(np.linalg.norm(np.diff(np.asarray(points), axis=0), axis=1)))
+
+
 def episode(env: Any, policy: Any, seed: int) -> dict[str, Any]:
     """One 600-step episode's row (see the module docstring)."""
     from robogym_ray.learner.behaviour import to_env_action
@@ -70,7 +75,7 @@ def episode(env: Any, policy: Any, seed: int) -> dict[str, Any]:
         end_rotation=float(r[-1]),
         closest=float(d.min()),
         target_gap=np.mean(gaps[-TAIL:], axis=0).round(5).tolist(),
-        step_motion=float(np.mean(np.linalg.norm(np.diff(where[-TAIL:], axis=0), axis=1))),
+        step_motion=mean_step(where[-TAIL:]),
         hover_centre=float(np.linalg.norm(np.mean(where[-TAIL:], axis=0) - info["target_coord"])),
     )
     return row
@@ -87,7 +92,8 @@ def deploy_windows(env: Any, policy: Any, seed: int) -> list[dict[str, Any]]:
     where, gaps, dist, acts = [], [], [], []
     done = False
     while not done:
-        unit = np.clip(np.asarray(policy(np.asarray(obs, np.float32)), np.float64), -1, 1)
+        # As deploy_reach_errors.py's loop acts (float32, clipped), so the episodes are its own.
+        unit = np.clip(policy(np.asarray(obs, np.float32)), -1.0, 1.0)
         goal = np.array(task.scored_pose[:3], np.float64)  # the command in force this step
         obs, _, terminated, truncated, info = env.step(to_env_action(unit, low, high))
         where.append(np.asarray(info["achieved_goal"][:3], np.float64))
@@ -95,13 +101,12 @@ def deploy_windows(env: Any, policy: Any, seed: int) -> list[dict[str, Any]]:
         dist.append(info["dist_coord"])
         acts.append(float(np.mean(np.abs(unit))))
         if "window_position_error" in info:
-            tail = np.asarray(where[-DEPLOY_TAIL:])
             rows.append({
                 "seed": seed,
                 "end": float(info["window_position_error"]),
                 "end_rotation": float(info["window_rotation_error"]),
                 "closest": float(min(dist)),
-                "step_motion": float(np.mean(np.linalg.norm(np.diff(tail, axis=0), axis=1))),
+                "step_motion": mean_step(where[-DEPLOY_TAIL:]),
                 "hover_centre": float(np.linalg.norm(np.mean(gaps[-DEPLOY_TAIL:], axis=0))),
                 "mean_abs_action": float(np.mean(acts[-DEPLOY_TAIL:])),
             })  # fmt: skip
