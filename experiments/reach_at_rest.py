@@ -28,8 +28,9 @@ from __future__ import annotations
 
 import argparse
 import json
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -139,6 +140,28 @@ def summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
     }
 
 
+class Measure(NamedTuple):
+    """What ``--deploy`` switches: the env, one episode's rows, their summary, the rows' name in
+    the JSON, and the first episode's seed."""
+
+    env_id: str
+    env_kwargs: dict[str, float]
+    rows: Callable[[Any, Any, int], list[dict[str, Any]]]
+    summary: Callable[[list[dict[str, Any]]], dict[str, Any]]
+    key: str
+    seed: int
+
+
+MEASURES = {
+    # No success ends an IsaacReach episode: both tolerances 1e-6.
+    False: Measure(
+        ENV_ID, {"ee_distance_threshold": 1e-6, "ee_rotation_threshold": 1e-6},
+        lambda env, policy, seed: [episode(env, policy, seed)], summary, "episodes", 0,
+    ),
+    True: Measure(DEPLOY_ENV_ID, {}, deploy_windows, deploy_summary, "windows", 1000),
+}  # fmt: skip
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("policy", help="learner.pt, or an exported policy with its .json")
@@ -149,7 +172,8 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--out", type=Path, help="JSON file for the summary and every row")
     args = parser.parse_args(argv)
-    seed = args.seed if args.seed is not None else (1000 if args.deploy else 0)
+    measure = MEASURES[args.deploy]
+    seed = measure.seed if args.seed is None else args.seed
 
     import gymnasium as gym
 
@@ -157,23 +181,16 @@ def main(argv: list[str] | None = None) -> int:
     from robogym_ray.export import load_policy
 
     policy = load_policy(args.policy)
-    if args.deploy:
-        env = gym.make(DEPLOY_ENV_ID)
-    else:
-        env = gym.make(ENV_ID, ee_distance_threshold=1e-6, ee_rotation_threshold=1e-6)
+    env = gym.make(measure.env_id, **measure.env_kwargs)
     try:
-        if args.deploy:
-            rows = [r for i in range(args.episodes) for r in deploy_windows(env, policy, seed + i)]
-        else:
-            rows = [episode(env, policy, seed + i) for i in range(args.episodes)]
+        rows = [r for i in range(args.episodes) for r in measure.rows(env, policy, seed + i)]
     finally:
         env.close()
-    result = deploy_summary(rows) if args.deploy else summary(rows)
+    result = measure.summary(rows)
     print(json.dumps(result, indent=1))
     if args.out:
         args.out.parent.mkdir(parents=True, exist_ok=True)
-        key = "windows" if args.deploy else "episodes"
-        args.out.write_text(json.dumps({"summary": result, key: rows}, indent=1))
+        args.out.write_text(json.dumps({"summary": result, measure.key: rows}, indent=1))
     return 0
 
 

@@ -71,10 +71,10 @@ def test_a_deploy_arm_held_still_measures_still_at_each_window_and_a_swinging_on
 
 @pytest.mark.parametrize(
     ("flags", "obs_dim", "rows", "count"),
-    [([], 25, "episodes", ("episodes", 1)), (["--deploy"], 19, "windows", ("windows", 3))],
+    [([], 25, "episodes", 1), (["--deploy"], 19, "windows", 3)],  # a row an episode / window
 )
 def test_the_script_prints_its_summary_and_keeps_every_row(
-    tmp_path: Path, capsys, flags: list[str], obs_dim: int, rows: str, count: tuple[str, int]
+    tmp_path: Path, capsys, flags: list[str], obs_dim: int, rows: str, count: int
 ) -> None:
     save_learner(tmp_path / "learner.pt", obs_dim, 6)
     out = tmp_path / "rest.json"
@@ -83,7 +83,7 @@ def test_the_script_prints_its_summary_and_keeps_every_row(
     printed = capsys.readouterr().out
     printed = json.loads(printed[printed.find("{") :])  # after pybullet's banner, if any
     record = json.loads(out.read_text())
-    assert record["summary"][count[0]] == count[1] and len(record[rows]) == count[1]
+    assert record["summary"][rows] == count and len(record[rows]) == count
     assert all(np.isfinite(row["end"]) for row in record[rows])
     if not flags:
         assert len(record["episodes"][0]["target_gap"]) == 6
