@@ -11,6 +11,7 @@ from typing import Any
 import ray
 
 from robogym_ray.distributed import robot_actors
+from robogym_ray.distributed.names import run_supervisor_name
 from robogym_ray.distributed.provider import SupervisorServerProvider
 from robogym_ray.robots.emulation import EmulationConfig
 from robogym_ray.supervision.restart_policy import FaultCause
@@ -95,6 +96,6 @@ def start_supervision(cfg: TrainConfig, env_id: str, run_name: str) -> Supervisi
     if running is not None:
         log.warning("using the running supervisor %s", robot_actors.SUPERVISOR_NAME)
         return Supervision(running, robot_actors.SUPERVISOR_NAME, owned=False, resources=resources)
-    name = f"{robot_actors.SUPERVISOR_NAME}-{run_name}"
+    name = run_supervisor_name(run_name)
     actor = robot_actors.start_supervisor(SupervisorConfig(server_num_cpus=server.cpus), name=name)
     return Supervision(actor, name, owned=True, resources=resources)

@@ -54,8 +54,7 @@ def test_a_killed_evaluator_is_replaced_and_goes_on(
 
     def evaluators_server() -> str:
         """The id of the server leased by holder "evaluator" ("" if none is)."""
-        name = f"{names.SUPERVISOR_NAME}-{run}"
-        supervisor = ray.get_actor(name, namespace=names.NAMESPACE)
+        supervisor = ray.get_actor(names.run_supervisor_name(run), namespace=names.NAMESPACE)
         servers = ray.get(supervisor.status.remote(), timeout=30)
         return next((s["id"] for s in servers if s["holder"] == "evaluator"), "")
 

@@ -43,7 +43,7 @@ def test_a_paused_robot_server_replaced_once_is_one_restart(
     done, paused, went_on = threading.Event(), [], []
 
     def servers() -> list[dict]:
-        sup = ray.get_actor(f"{names.SUPERVISOR_NAME}-{run}", namespace=names.NAMESPACE)
+        sup = ray.get_actor(names.run_supervisor_name(run), namespace=names.NAMESPACE)
         return [s for s in ray.get(sup.status.remote(), timeout=10) if s["holder"] == "worker-0"]
 
     def worker_steps() -> int:

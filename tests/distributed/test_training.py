@@ -152,7 +152,7 @@ def test_killing_a_robot_server_a_worker_and_the_learner_mid_run(tmp_path: Path)
     snapshot: dict[str, float] = {"mtime": 0.0, "transitions": 0}
 
     def supervisor() -> Any:
-        return ray.get_actor(f"{names.SUPERVISOR_NAME}-{run}", namespace=names.NAMESPACE)
+        return ray.get_actor(names.run_supervisor_name(run), namespace=names.NAMESPACE)
 
     def learner() -> Any:
         return ray.get_actor(f"learner-{run}", namespace=names.NAMESPACE)
@@ -420,7 +420,7 @@ def test_emulated_workers_train_on_emulated_robots_and_the_evaluator_does_not(
 
     def watch() -> None:
         while not done.is_set():
-            sup = robot_actors.get_supervisor(f"{names.SUPERVISOR_NAME}-{run}")
+            sup = robot_actors.get_supervisor(names.run_supervisor_name(run))
             if sup is not None:
                 try:
                     servers = [s for s in ray.get(sup.status.remote()) if s["leased"]]
