@@ -169,7 +169,6 @@ def test_tasks_that_cannot_be_relabelled_are_refused(tmp_path: Path) -> None:
     [("RoboGymRay/IsaacReachIsaacRewardUR10Sim-v0", 120),
      ("RoboGymRay/IsaacReachRotationTanhUR10Sim-v0", 120),
      ("RoboGymRay/IsaacReachFineTanhUR10Sim-v0", 120),
-     ("RoboGymRay/IsaacReachSteadyUR10Sim-v0", 120),
      ("RoboGymRay/IsaacDeployReachUR10eSim-v0", 240)],
 )  # fmt: skip
 def test_isaac_labs_reach_tasks_score_any_command_as_their_own(env_id: str, window: int) -> None:

@@ -18,15 +18,14 @@ joint_pos_env_cfg.py`` (032e26b7 and b9fb730a), ``config/ur_10/agents/rsl_rl_ppo
 
 Not mirrored: the ``CurriculumCfg`` that raises the action-rate weight to -0.005 and the
 joint-velocity weight to -0.001 after 4,500 steps of the vectorised env (iteration ~188 of the
-1,000 rsl_rl runs; a variant may set its own, ``effort_weights``),
-and the U(+-0.01) noise on the observed joints (``enable_corruption``).
+1,000 rsl_rl runs), and the U(+-0.01) noise on the observed joints (``enable_corruption``).
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from typing import Any, ClassVar
+from typing import Any
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -38,9 +37,8 @@ from robogym_ray.envs.pose_commands import PoseCommands, pose_error, pose_errors
 from robogym_ray.protocol import robot_server_pb2 as pb
 
 POSITION_WEIGHT, TANH_WEIGHT, TANH_STD, ROTATION_WEIGHT = -0.2, 0.1, 0.1, -0.1
-EFFORT_WEIGHTS = (-1e-4, -1e-4)
-"""``Isaac-Reach-UR10-v0``'s action-rate and joint-velocity weights at its start (per second:
-the env multiplies them by its dt)."""
+ACTION_RATE_WEIGHT, JOINT_VEL_WEIGHT = -1e-4, -1e-4
+"""``Isaac-Reach-UR10-v0``'s reward weights (per second: the env multiplies them by its dt)."""
 
 
 def tracking_per_second(position: Any, rotation: Any) -> Any:
@@ -50,31 +48,20 @@ def tracking_per_second(position: Any, rotation: Any) -> Any:
     return POSITION_WEIGHT * position + tanh + ROTATION_WEIGHT * rotation
 
 
-def effort_per_second(
-    action_change: np.ndarray,
-    joint_velocity: np.ndarray,
-    weights: tuple[float, float] = EFFORT_WEIGHTS,
-) -> float:
+def effort_per_second(action_change: np.ndarray, joint_velocity: np.ndarray) -> float:
     """The reward's terms that no command changes, before the dt: the change of the raw action
-    from the step before and the joint velocities (rad/s), times ``weights`` (action rate,
-    joint velocity)."""
-    rate, velocity = weights
-    effort = rate * float(np.sum(np.square(action_change)))
-    return effort + velocity * float(np.sum(np.square(joint_velocity)))
+    from the step before and the joint velocities (rad/s)."""
+    effort = ACTION_RATE_WEIGHT * float(np.sum(np.square(action_change)))
+    return effort + JOINT_VEL_WEIGHT * float(np.sum(np.square(joint_velocity)))
 
 
 def reward_per_second(
-    position: float,
-    rotation: float,
-    action_change: np.ndarray,
-    joint_velocity: np.ndarray,
-    weights: tuple[float, float] = EFFORT_WEIGHTS,
+    position: float, rotation: float, action_change: np.ndarray, joint_velocity: np.ndarray
 ) -> float:
     """Isaac Lab's reach reward before the dt: position and rotation errors (m, rad) to the
-    command, the change of the raw action from the step before, the joint velocities (rad/s),
-    the effort ``weights``."""
+    command, the change of the raw action from the step before, the joint velocities (rad/s)."""
     tracking = float(tracking_per_second(position, rotation))
-    return tracking + effort_per_second(action_change, joint_velocity, weights)
+    return tracking + effort_per_second(action_change, joint_velocity)
 
 
 def step_reward_range(
@@ -83,7 +70,6 @@ def step_reward_range(
     max_velocity: np.ndarray,
     max_position_error: float,
     rate: float,
-    weights: tuple[float, float] = EFFORT_WEIGHTS,
 ) -> tuple[float, float]:
     """The bounds of one step's reward (per-second reward / ``rate``, actions per second).
 
@@ -92,8 +78,7 @@ def step_reward_range(
     from one bound to the other on every joint, every joint at ``max_velocity`` (rad/s).
     """
     span = np.asarray(action_high, np.float64) - np.asarray(action_low, np.float64)
-    velocity = np.asarray(max_velocity)
-    worst = reward_per_second(max_position_error, math.pi, span, velocity, weights)
+    worst = reward_per_second(max_position_error, math.pi, span, np.asarray(max_velocity))
     best = reward_per_second(0.0, 0.0, np.zeros(1), np.zeros(1))
     return worst / rate, best / rate
 
@@ -111,8 +96,6 @@ class IsaacLabReachMDP(PoseCommands):
     # A new command every 4 s: PoseCommands' resampling_time default, Isaac Lab's.
     reward_info_keys = ("effort",)
     ends_on_goal = False
-    effort_weights: ClassVar[tuple[float, float]] = EFFORT_WEIGHTS
-    """The action-rate and joint-velocity weights (per second)."""
 
     @property
     def goal_slice(self) -> slice:
@@ -150,7 +133,7 @@ class IsaacLabReachMDP(PoseCommands):
         xyz, turn = frame_xyz(sd, "ee"), frame_rotation(sd, "ee")
         position, rotation = pose_error(xyz, turn, self.scored_pose)
         change = np.asarray(action, dtype=np.float64) - self.prev_action
-        effort = effort_per_second(change, self.velocities(msg), self.effort_weights)
+        effort = effort_per_second(change, self.velocities(msg))
         reward = float(self._tracking(position, rotation)) + effort
         reached = turn.as_quat(canonical=self.pose_cfg.ee_rotation_quat_unique)
         info: StepInfo = {

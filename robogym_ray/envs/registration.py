@@ -76,8 +76,6 @@ TASKS: tuple[tuple[str, str, tuple[RobotVariant, ...]], ...] = (
     ("IsaacReachRotationTanh", _ISAAC_REWARD + "IsaacReachRotationTanhUR", _ur("UR10")),
     # And with finer position and rotation tanh terms, their stds the success tolerances.
     ("IsaacReachFineTanh", _ISAAC_REWARD + "IsaacReachFineTanhUR", _ur("UR10")),
-    # And with ten times Isaac Lab's starting action-rate weight.
-    ("IsaacReachSteady", _ISAAC_REWARD + "IsaacReachSteadyUR", _ur("UR10")),
     # Isaac Lab 3's Isaac-Deploy-Reach-UR10e-v0 (19 obs / 6 actions, 60 Hz).
     ("IsaacDeployReach", _DEPLOY + "IsaacDeployReachUR", _ur("UR10e")),
 )

@@ -9,11 +9,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from robogym_ray.envs.isaac_reach_reward import (
-    EFFORT_WEIGHTS,
-    IsaacLabReachMDP,
-    step_reward_range,
-)
+from robogym_ray.envs.isaac_reach_reward import IsaacLabReachMDP, step_reward_range
 from robogym_ray.envs.pose_commands import TanhTerm
 from robogym_ray.envs.ur_common import JOINT_MAX
 from robogym_ray.envs.ur_modular import IsaacReachUR
@@ -98,35 +94,19 @@ class IsaacReachFineTanhUR(IsaacReachRotationTanhUR):
     )
 
 
-class IsaacReachSteadyUR(IsaacReachFineTanhUR):
-    """``IsaacReachFineTanhUR`` with ten times Isaac Lab's starting action-rate weight, from the
-    first step: ``-1e-3 |a_t - a_t-1|^2`` per second instead of 1e-4 (the joint-velocity weight
-    stays 1e-4). The fine variant's policies change their raw actions by ~52 a step near the
-    command, which this weight prices at 0.05 per second: about what the fine terms pay for
-    holding 0.5 cm closer at 1 cm, and a fifth of what Isaac Lab's curriculum ends on (-0.005),
-    at which holding still anywhere outscored tracking. Spaces, commands, ends and resets are
-    ``IsaacReachIsaacRewardUR``'s.
-    """
-
-    effort_weights = (-1e-3, EFFORT_WEIGHTS[1])
-
-
 def return_range(
     discount: float = 0.99, task: type[IsaacLabReachMDP] = IsaacReachIsaacRewardUR
 ) -> tuple[float, float]:
     """The bounds of a discounted return of ``IsaacReachIsaacRewardUR10Sim-v0`` (episodes end
     only by the time limit, so the horizon is 1 / (1 - discount)), from its action bounds and
     the UR10's speed limits at the env's 0.2 of them, at 30 Hz; ``task``: the variant, whose
-    tanh terms (>= 0, their weights at best) raise the best only, and whose effort weights
-    set the worst."""
+    tanh terms (>= 0, their weights at best) raise the best only."""
     default = np.asarray(IsaacReachUR.default_joints)
     scale = 0.5  # isaac_scale's default
     low, high = (-JOINT_MAX - default) / scale, (JOINT_MAX - default) / scale
     speeds = IsaacReachUR.velocity_scale * np.asarray(UR_MODELS["ur10"].max_velocity)
     rate = IsaacReachUR.action_rate
-    worst, best = step_reward_range(
-        low, high, speeds, MAX_POSITION_ERROR, rate, task.effort_weights
-    )
+    worst, best = step_reward_range(low, high, speeds, MAX_POSITION_ERROR, rate)
     best += sum(term.weight for term in task.tanh_terms) / rate
     horizon = 1.0 / (1.0 - discount)
     return worst * horizon, best * horizon

@@ -80,8 +80,6 @@ _ISAAC_REACH_ISAAC_REWARD = _isaac_reach_support(ur_isaac_reach_reward.IsaacReac
 _ISAAC_REACH_ROTATION_TANH = _isaac_reach_support(ur_isaac_reach_reward.IsaacReachRotationTanhUR)
 # [-4, 2]: the two finer terms add 0.2 / 30 more, 0.0133 x 100 = 1.33.
 _ISAAC_REACH_FINE_TANH = _isaac_reach_support(ur_isaac_reach_reward.IsaacReachFineTanhUR)
-# [-14, 2]: the fine terms' best; the worst with its action-rate weight at the full bounds.
-_ISAAC_REACH_STEADY = _isaac_reach_support(ur_isaac_reach_reward.IsaacReachSteadyUR)
 _NAVIGATION = {"v_min": -300.0, "v_max": 450.0, "layer_norm": True, "min_replay_size": 500}
 
 TASKS: dict[str, TaskPreset] = {
@@ -152,12 +150,6 @@ TASKS: dict[str, TaskPreset] = {
         "RoboGymRay/IsaacReachFineTanhUR10Sim-v0",
         _ISAAC_REACH_FINE_TANH,
         "isaac-reach-ur10-rotation-tanh with finer tanh terms at the success tolerances",
-    ),
-    # The same with ten times Isaac Lab's starting action-rate weight (-1e-3), from the start.
-    "isaac-reach-ur10-steady": TaskPreset(
-        "RoboGymRay/IsaacReachSteadyUR10Sim-v0",
-        _ISAAC_REACH_STEADY,
-        "isaac-reach-ur10-fine-tanh with ten times its action-rate weight (-1e-3 a second)",
     ),
     # Isaac Lab 3's deploy reach (UR10e): its keypoint reward times 1/60 s per step, plus the
     # action and action-rate L2 terms; episodes end only by the time limit, so the support is the

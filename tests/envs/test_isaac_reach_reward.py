@@ -23,24 +23,15 @@ SIM, ROB = (
 ORIGINAL = "RoboGymRay/IsaacReachUR10Sim-v0"
 ROTATION_TANH = "RoboGymRay/IsaacReachRotationTanhUR10Sim-v0"
 FINE_TANH = "RoboGymRay/IsaacReachFineTanhUR10Sim-v0"
-STEADY = "RoboGymRay/IsaacReachSteadyUR10Sim-v0"
-ISAAC_LAB_EFFORT, STEADY_EFFORT = (-1e-4, -1e-4), (-1e-3, -1e-4)
 DEFAULT = np.array([0.0, -1.712, 1.712, 0.0, 0.0, 0.0])
 
 
 def isaac_lab_reward(
-    position: float,
-    rotation: float,
-    change,
-    velocity,
-    tanh_weight=0.0,
-    fine_weight=0.0,
-    effort=ISAAC_LAB_EFFORT,
+    position: float, rotation: float, change, velocity, tanh_weight=0.0, fine_weight=0.0
 ) -> float:
     """Isaac Lab's five reach terms times their weights and the step dt of 2 x 1/60 s; with
     ``tanh_weight``, the rotation variant's sixth, ``tanh_weight (1 - tanh(rotation / 0.25))``;
-    with ``fine_weight``, the fine variant's two more at stds 0.02 m and 0.05 rad; ``effort``:
-    the action-rate and joint-velocity weights."""
+    with ``fine_weight``, the fine variant's two more at stds 0.02 m and 0.05 rad."""
     terms = [
         tanh_weight * (1.0 - math.tanh(rotation / 0.25)),
         fine_weight * (1.0 - math.tanh(position / 0.02)),
@@ -48,8 +39,8 @@ def isaac_lab_reward(
         -0.2 * position,
         0.1 * (1.0 - math.tanh(position / 0.1)),
         -0.1 * rotation,
-        effort[0] * float(np.sum(np.square(change))),
-        effort[1] * float(np.sum(np.square(velocity))),
+        -1e-4 * float(np.sum(np.square(change))),
+        -1e-4 * float(np.sum(np.square(velocity))),
     ]
     return sum(terms) * 2 / 60
 
@@ -95,16 +86,11 @@ def test_ids_spaces_server_and_isaac_terms_are_isaac_reach_ur10s() -> None:
 
 
 @pytest.mark.parametrize(
-    ("env_id", "tanh_weight", "fine_weight", "effort"),
-    [
-        (SIM, 0.0, 0.0, ISAAC_LAB_EFFORT),
-        (ROTATION_TANH, 0.1, 0.0, ISAAC_LAB_EFFORT),
-        (FINE_TANH, 0.1, 0.1, ISAAC_LAB_EFFORT),
-        (STEADY, 0.1, 0.1, STEADY_EFFORT),
-    ],
+    ("env_id", "tanh_weight", "fine_weight"),
+    [(SIM, 0.0, 0.0), (ROTATION_TANH, 0.1, 0.0), (FINE_TANH, 0.1, 0.1)],
 )
 def test_a_step_scores_tool1_against_the_command_by_isaac_labs_formula(
-    env_id: str, tanh_weight: float, fine_weight: float, effort: tuple[float, float]
+    env_id: str, tanh_weight: float, fine_weight: float
 ) -> None:
     env = gym.make(env_id, rs_state_to_info=True)
     try:
@@ -127,7 +113,7 @@ def test_a_step_scores_tool1_against_the_command_by_isaac_labs_formula(
             velocity = [sd[k] for k in task.velocity_keys]
             change = action - previous
             expected = isaac_lab_reward(
-                position, rotation, change, velocity, tanh_weight, fine_weight, effort
+                position, rotation, change, velocity, tanh_weight, fine_weight
             )
             assert reward == pytest.approx(expected, abs=1e-6)
             assert info["dist_coord"] == pytest.approx(position, abs=1e-6)
@@ -252,26 +238,3 @@ def test_the_tanh_variants_range_and_support(
     assert preset.env_id == env_id
     assert (preset.d4pg["v_min"], preset.d4pg["v_max"]) == support
     assert tanh_best <= preset.d4pg["v_max"] < tanh_best + 1
-
-
-def test_the_steady_variant_prices_the_action_rate_ten_times_higher() -> None:
-    """The steady variant keeps the fine variant's best and scales the action-rate part of its
-    worst by ten: the full action swing is 3316 rad^2 (above)."""
-    from robogym_ray.envs.ur_isaac_reach_reward import IsaacReachFineTanhUR, return_range
-    from robogym_ray.training.presets import TASKS
-
-    env = gym.make(STEADY)
-    try:
-        task = type(env.unwrapped)
-    finally:
-        env.close()
-    (fine_worst, fine_best), (worst, best) = (
-        return_range(0.99, IsaacReachFineTanhUR),
-        return_range(0.99, task),
-    )
-    assert best == fine_best
-    per_step = (-1e-3 + 1e-4) * 3316.2 / 30
-    assert worst - fine_worst == pytest.approx(100 * per_step, rel=1e-3)
-    preset = TASKS["isaac-reach-ur10-steady"]
-    assert preset.env_id == STEADY
-    assert (preset.d4pg["v_min"], preset.d4pg["v_max"]) == (-14.0, 2.0)
