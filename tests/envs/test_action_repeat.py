@@ -1,16 +1,14 @@
 """``ActionRepeat`` (``envs/repeat.py``) on the deploy reach's real PyBullet servo: a decision
 held for k steps is those k steps of the env, their rewards summed, the episode's end and its
-command windows' errors kept; and a CI-sized training at a lower decision rate."""
+command windows' errors kept. A training with it: tests/distributed/test_action_repeat_training.py.
+"""
 
 from __future__ import annotations
-
-from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
 import pytest
 
-import robogym_ray
 from robogym_ray.envs.repeat import ActionRepeat, repeating
 from robogym_ray.errors import ConfigError
 from robogym_ray.experience.rollout import make_gym_env
@@ -80,21 +78,3 @@ def test_repeat_one_is_the_envs_own_factory() -> None:
     env = repeating(factory, 3)()
     assert isinstance(env, ActionRepeat) and env.repeat == 3
     env.close()
-
-
-@pytest.mark.ray
-@pytest.mark.slow
-@pytest.mark.usefixtures("ray_cluster")
-def test_a_short_training_at_a_quarter_of_the_deploy_reachs_rate(tmp_path: Path) -> None:
-    # 200 decisions of one env: the first 720-step episode ends at its 180th.
-    small = {"policy_hidden": [32, 32], "critic_hidden": [32, 32], "min_replay_size": 50,
-             "batch_size": 16, "samples_per_insert": 2.0, "replay_capacity": 5_000}  # fmt: skip
-    summary = robogym_ray.train(
-        task="isaac-deploy-reach-ur10e", d4pg=small, workers=1, envs_per_worker=1,
-        total_steps=200, random_steps=50, action_repeat=REPEAT, logdir=str(tmp_path),
-        run_name="held", progress=False, video_interval_s=0.0, final_eval_episodes=1,
-    )  # fmt: skip
-    assert summary["env_steps"] >= 200 and summary["learner_steps"] > 0
-    assert summary["episodes"] >= 1 and summary["lost_transitions"] == 0
-    # The evaluator plays at the env's own 60 Hz: its episodes end at 720 steps with windows.
-    assert summary["eval/timeout_rate"] == 1.0 and "eval/window_position_error" in summary
