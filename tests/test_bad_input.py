@@ -446,13 +446,3 @@ def test_the_python_entrys_errors_name_its_keywords(tmp_path: Path) -> None:
     assert line.startswith(f"tls_ca {ca}: cannot read it"), line
     line = refused(emulated_workers=1)
     assert line == "emulated_workers=1 needs a robot task; Pendulum-v1 has none", line
-
-
-def test_action_repeat_is_checked_before_ray(tmp_path: Path, capfd: pytest.CaptureFixture) -> None:
-    runs = tmp_path / "runs"
-    line = train_fails(capfd, runs, "--task", "pendulum", "--action-repeat", "0")
-    assert line == "error: --action-repeat 0: expected >= 1", line
-    # A relabelled reward is one env step's; a held decision's is the sum of several.
-    line = train_fails(capfd, runs, "--task", "pendulum", "--action-repeat", "2",
-                       "--relabel-goals", "2")  # fmt: skip
-    assert line.startswith("error: --action-repeat 2: expected 1 with relabel_goals"), line

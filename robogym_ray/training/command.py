@@ -26,7 +26,7 @@ HELP_GROUPS: dict[str, tuple[str, ...]] = {
     "D4PG (the workers' side; the learner's settings are the config file's d4pg section)": (
         "steps_per_call", "weight_sync_steps", "random_steps", "sigma_min",
         "sigma_decay_start", "sigma_decay_steps", "sigma_final_scale", "revisit_failed",
-        "revisit_pool", "revisit_max", "relabel_goals", "action_repeat"),
+        "revisit_pool", "revisit_max", "relabel_goals"),
     "evaluation": ("evaluator", "eval_env_id", "eval_interval_s", "final_eval_episodes",
                    "video_interval_s", "select_episodes", "policy_snapshot_every_s"),
     "faults and storage": ("storage", "init_from", "checkpoint_every", "save_replay",

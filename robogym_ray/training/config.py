@@ -108,11 +108,6 @@ class TrainConfig:
     relabel_goals: int = 0
     """Copies of each step under commands its episode reached later (HER); 0 = off. Goal
     tasks only; samples_per_insert counts the copies (experience/relabel.py)."""
-    action_repeat: int = 1
-    """Env steps each of the workers' decisions is held for (their rewards summed); 1 = the
-    env's own rate. The learner's discount and n_step, and every count of env steps here
-    (total_steps, random_steps, the summary's), are then in decisions; the evaluator plays at
-    the env's own rate. Not with relabel_goals, which scores single steps (envs/repeat.py)."""
     checkpoint_every: int = 500
     """Learner steps between checkpoints (a restarted learner resumes from the latest)."""
     init_from: str | None = None
@@ -238,12 +233,6 @@ class TrainConfig:
             (self.revisit_pool >= 1, "revisit_pool", ">= 1"),
             (self.revisit_max >= 1, "revisit_max", ">= 1"),
             (self.relabel_goals >= 0, "relabel_goals", ">= 0"),
-            (self.action_repeat >= 1, "action_repeat", ">= 1"),
-            (
-                self.action_repeat == 1 or self.relabel_goals == 0,
-                "action_repeat",
-                "1 with relabel_goals (a relabelled reward scores one env step)",
-            ),
             (self.worker_cpus > 0, "worker_cpus", "> 0"),
             (self.learner_cpus > 0, "learner_cpus", "> 0"),
             (self.server_cpus > 0, "server_cpus", "> 0"),

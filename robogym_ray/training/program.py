@@ -41,7 +41,6 @@ from robogym_ray.distributed.real_client import RealRobotClientFactory
 from robogym_ray.distributed.storage_check import check_reachable
 from robogym_ray.envs.inprocess import InProcessServerProvider
 from robogym_ray.envs.registration import variant_id
-from robogym_ray.envs.repeat import repeating
 from robogym_ray.errors import DiskWriteError
 from robogym_ray.experience.revisits import FailedStartRevisits
 from robogym_ray.experience.rollout import box_dims, make_gym_env
@@ -175,7 +174,6 @@ class Program:
     def _rollout_actor(self, i: int, real_env: Any = None, generation: int = 0) -> Any:
         cfg = self.cfg
         factory = real_env or make_gym_env(self.preset.env_id, self._env_kwargs(i))
-        factory = repeating(factory, cfg.action_repeat)  # every worker's, real ones' too
         name = f"rollout-{self.name}-{i}" + (f"-{generation}" if generation else "")
         # A real robot's worker goes anywhere: it reaches its robot through the real-robot actor.
         placement = self._need("real-robot worker" if real_env else "rollout worker").options()
