@@ -19,19 +19,17 @@ servo turns a wrist at most stiffness / damping x 0.0625 = ~0.45 rad/s, so 4 s c
 
 It is a TorchScript-able ``torch.nn.Module`` (batched ``[B, 19] -> [B, 6]``), so the same
 expert runs in the scoring script and, exported like an Isaac Lab policy, through
-``run-policy --isaac-lab``. The chain's constant transforms are read off ``geometry``'s
-forward kinematics at the zero pose, so the kinematics are written once. It imports torch, so
-no env module imports it (a Sim env stays without torch).
+``run-policy --isaac-lab``. Its kinematics are ``robots/ur/torch_kinematics.py``'s. It imports
+torch, so no env module imports it (a Sim env stays without torch).
 """
 
 from __future__ import annotations
 
 import numpy as np
 import torch
-from scipy.spatial.transform import Rotation
 
 from robogym_ray.envs.frames import QUAT_ORDERS
-from robogym_ray.robots.ur.geometry import LINK_NAMES, forward_kinematics
+from robogym_ray.robots.ur.torch_kinematics import URChain, quat_matrix, rotation_vector
 
 SCALE = 0.0625
 """Isaac Lab's ``RelativeJointPositionAction`` scale (rad per unit action)."""
@@ -39,22 +37,6 @@ DAMPING = 0.05
 """lambda of the damped least squares (m, rad): below it the solve stops trusting J."""
 GAIN = 1.0
 """Share of the remaining error asked for per step (2.0 gave the same window ends)."""
-
-
-def _matrix(xyz: np.ndarray, quat_xyzw: np.ndarray) -> np.ndarray:
-    m = np.eye(4)
-    m[:3, :3] = Rotation.from_quat(quat_xyzw).as_matrix()
-    m[:3, 3] = xyz
-    return m
-
-
-def chain(model: str = "ur10e") -> tuple[np.ndarray, np.ndarray]:
-    """``base_link_inertia``'s pose and each joint's fixed transform from its parent link, read
-    off the forward kinematics at q = 0 (each joint turns about its own z after it)."""
-    frames = forward_kinematics(model, np.zeros(6))
-    poses = [_matrix(*frames["base_link_inertia"])] + [_matrix(*frames[n]) for n in LINK_NAMES]
-    fixed = [np.linalg.inv(a) @ b for a, b in zip(poses[:-1], poses[1:], strict=True)]
-    return poses[0], np.stack(fixed)
 
 
 class DeployReachExpert(torch.nn.Module):
@@ -71,9 +53,7 @@ class DeployReachExpert(torch.nn.Module):
             raise ValueError(f"quat_order must be one of {QUAT_ORDERS}, got {quat_order!r}")
         self.wxyz = quat_order == "wxyz"
         self.scale, self.damping, self.gain = SCALE, DAMPING, GAIN  # TorchScript reads no globals
-        root, fixed = chain(model)
-        self.register_buffer("root", torch.from_numpy(root))
-        self.register_buffer("fixed", torch.from_numpy(fixed))
+        self.chain = URChain(model)
         # UR's base frame is base_link turned pi about z: x and y change sign.
         self.register_buffer("flip", torch.tensor([-1.0, -1.0, 1.0], dtype=torch.float64))
 
@@ -82,9 +62,9 @@ class DeployReachExpert(torch.nn.Module):
         q, goal_p, quat = x[:, :6], x[:, 12:15] * self.flip, x[:, 15:19]
         if self.wxyz:
             quat = torch.cat([quat[:, 1:], quat[:, :1]], dim=1)
-        goal_r = self.flip.unsqueeze(1) * _quat_matrix(quat)  # Rz(pi) @ R
+        goal_r = self.flip.unsqueeze(1) * quat_matrix(quat)  # Rz(pi) @ R
         pos, rot, jac = self.kinematics(q)
-        err_r = _rotation_vector(goal_r @ rot.transpose(1, 2))
+        err_r = rotation_vector(goal_r @ rot.transpose(1, 2))
         err = torch.cat([(goal_p - pos), err_r], dim=1).unsqueeze(2)
         eye = torch.eye(6, dtype=torch.float64).expand(x.shape[0], 6, 6)
         lhs = jac @ jac.transpose(1, 2) + self.damping * self.damping * eye
@@ -94,49 +74,7 @@ class DeployReachExpert(torch.nn.Module):
 
     def kinematics(self, q: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """``wrist_3_link``'s position and rotation in ``base_link``, and the 6 x 6 Jacobian."""
-        batch = q.shape[0]
-        m = self.root.expand(batch, 4, 4)
-        axes, origins = [], []
-        for i in range(6):
-            m = m @ self.fixed[i]
-            axes.append(m[:, :3, 2])
-            origins.append(m[:, :3, 3])
-            m = m @ _rot_z(q[:, i])
-        pos = m[:, :3, 3]
-        z = torch.stack(axes, dim=2)
-        lever = pos.unsqueeze(2) - torch.stack(origins, dim=2)
-        jac = torch.cat([torch.linalg.cross(z, lever, dim=1), z], dim=1)
-        return pos, m[:, :3, :3], jac
-
-
-def _rot_z(angle: torch.Tensor) -> torch.Tensor:
-    c, s = torch.cos(angle), torch.sin(angle)
-    zero, one = torch.zeros_like(angle), torch.ones_like(angle)
-    rows = [c, -s, zero, zero, s, c, zero, zero, zero, zero, one, zero, zero, zero, zero, one]
-    return torch.stack(rows, dim=1).reshape(-1, 4, 4)
-
-
-def _quat_matrix(q: torch.Tensor) -> torch.Tensor:
-    """Rotation matrices of (normalised) x-y-z-w quaternions."""
-    q = q / torch.linalg.vector_norm(q, dim=1, keepdim=True)
-    x, y, z, w = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
-    rows = [
-        1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w),
-        2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w),
-        2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y),
-    ]  # fmt: skip
-    return torch.stack(rows, dim=1).reshape(-1, 3, 3)
-
-
-def _rotation_vector(r: torch.Tensor) -> torch.Tensor:
-    """Axis x angle of rotation matrices (the log map), by atan2 so that it holds up to pi."""
-    skew = torch.stack(
-        [r[:, 2, 1] - r[:, 1, 2], r[:, 0, 2] - r[:, 2, 0], r[:, 1, 0] - r[:, 0, 1]], dim=1
-    )
-    sin = 0.5 * torch.linalg.vector_norm(skew, dim=1, keepdim=True)
-    cos = 0.5 * (r[:, 0, 0] + r[:, 1, 1] + r[:, 2, 2] - 1.0).unsqueeze(1)
-    angle = torch.atan2(sin, cos)
-    return skew * (angle / (2.0 * sin).clamp(min=1e-9))
+        return self.chain(q)
 
 
 def numpy_policy(expert: DeployReachExpert) -> object:

@@ -36,6 +36,11 @@ class D4PGConfig:
     """Hidden layer sizes of the distributional critic (input: concatenated obs and action)."""
     layer_norm: bool = False
     """Put a LayerNorm after every hidden Linear (Acme-style); helps with unscaled inputs."""
+    critic_features: str = ""
+    """Inputs the critic computes from each observation and action beside them
+    (``learner/features.py``): '' none; 'ur10e-deploy-pose' the deploy reach's pose errors of
+    the wrist where the joints are and where the action sends them. The policy does not see
+    them: it stays ``obs -> action``, and so does every file it is exported to."""
     num_atoms: int = 51
     """Number of atoms of the categorical value distribution."""
     v_min: float = -150.0

@@ -31,6 +31,7 @@ from robogym_ray.learner.distributional import (
     expected_value,
     make_support,
 )
+from robogym_ray.learner.features import critic_features
 from robogym_ray.learner.networks import DistributionalCritic, Policy
 from robogym_ray.learner.replay import Backend, PrioritizedReplay
 from robogym_ray.learner.schedules import importance_beta, lr_scale
@@ -89,8 +90,9 @@ class D4PGLearner:
             torch.set_flush_denormal(True)
         c = config
         self.policy = Policy(obs_dim, act_dim, c.policy_hidden, c.layer_norm).to(self.device)
+        features = critic_features(c.critic_features, obs_dim, act_dim)
         self.critic = DistributionalCritic(
-            obs_dim, act_dim, c.critic_hidden, c.num_atoms, c.layer_norm
+            obs_dim, act_dim, c.critic_hidden, c.num_atoms, c.layer_norm, features
         ).to(self.device)
         for net in (self.policy, self.critic):
             net.set_action_box(c.action_box_low, c.action_box_high)

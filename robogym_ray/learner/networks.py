@@ -80,7 +80,8 @@ class Policy(ActionBox):
 
 class DistributionalCritic(ActionBox):
     """``(obs, action) -> logits`` over a fixed support of ``num_atoms`` atoms; the action is
-    read on its action box's own [-1, 1] scale."""
+    read on its action box's own [-1, 1] scale, and with ``features`` (``learner/features.py``)
+    the net also reads what they compute from the observation and the action."""
 
     def __init__(
         self,
@@ -89,11 +90,16 @@ class DistributionalCritic(ActionBox):
         hidden: Sequence[int],
         num_atoms: int,
         layer_norm: bool = False,
+        features: nn.Module | None = None,
     ) -> None:
         super().__init__()
-        self.net = mlp(obs_dim + act_dim, hidden, num_atoms, layer_norm)
+        extra = int(getattr(features, "dim", 0))
+        self.net = mlp(obs_dim + act_dim + extra, hidden, num_atoms, layer_norm)
         self._init_box(act_dim)
+        self.features = features
 
     def forward(self, obs: torch.Tensor, action: torch.Tensor) -> torch.Tensor:
         scaled = (action - self.box_center) / self.box_half
-        return self.net(torch.cat([obs, scaled], dim=-1))
+        if self.features is None:
+            return self.net(torch.cat([obs, scaled], dim=-1))
+        return self.net(torch.cat([obs, scaled, self.features(obs, action)], dim=-1))

@@ -22,6 +22,7 @@ from robogym_ray.experience.rollout import box_dims, make_gym_env
 from robogym_ray.learner import checkpoint
 from robogym_ray.learner.checkpoint import RUN_CHECKPOINT, replay_path
 from robogym_ray.learner.config import D4PGConfig
+from robogym_ray.learner.features import critic_features
 from robogym_ray.learner.learner import make_adam
 from robogym_ray.learner.networks import DistributionalCritic, Policy
 from robogym_ray.learner.schedules import linear_ramp
@@ -188,10 +189,11 @@ def learner_networks(
     Only these: a whole D4PGLearner would allocate its replay and set torch's threads, seed and
     denormal mode in this (driver) process.
     """
+    features = critic_features(d4pg.critic_features, obs_dim, act_dim)  # its own ConfigError
     try:
         policy = Policy(obs_dim, act_dim, d4pg.policy_hidden, d4pg.layer_norm)
         critic = DistributionalCritic(
-            obs_dim, act_dim, d4pg.critic_hidden, d4pg.num_atoms, d4pg.layer_norm
+            obs_dim, act_dim, d4pg.critic_hidden, d4pg.num_atoms, d4pg.layer_norm, features
         )
     except (RuntimeError, ValueError, TypeError) as exc:
         raise ConfigError(
