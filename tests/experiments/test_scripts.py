@@ -54,6 +54,7 @@ def load_config(name: str):
         "isaac-reach-ur10-her-average-long-replay",
         "isaac-deploy-reach-ur10e-fine",
         "isaac-deploy-reach-ur10e-average",
+        "isaac-deploy-reach-ur10e-average-quarter-ratio",
     ],
 )
 def test_configs_load_and_flags_override_them(name: str) -> None:
