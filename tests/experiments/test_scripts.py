@@ -55,6 +55,7 @@ def load_config(name: str):
         "isaac-deploy-reach-ur10e-fine",
         "isaac-deploy-reach-ur10e-average",
         "isaac-deploy-reach-ur10e-average-quarter-ratio",
+        "isaac-deploy-reach-ur10e-average-quarter-ratio-pose-critic",
     ],
 )
 def test_configs_load_and_flags_override_them(name: str) -> None:
@@ -74,6 +75,7 @@ def test_configs_load_and_flags_override_them(name: str) -> None:
     assert (train.relabel_goals > 0) == ("-her" in name)
     assert (d4pg.get("replay_capacity") == 3_000_000) == name.endswith("-long-replay")
     assert ("Sectors" in train.task) == ("-sectors" in name)
+    assert (d4pg.get("critic_features", "") != "") == name.endswith("-pose-critic")
     from robogym_ray.training.presets import d4pg_for, resolve_task
 
     d4pg_for(resolve_task(train.task), d4pg)  # every key is a D4PGConfig field
