@@ -29,7 +29,7 @@ import numpy as np
 import torch
 
 from robogym_ray.envs.frames import QUAT_ORDERS
-from robogym_ray.robots.ur.torch_kinematics import URChain, quat_matrix, rotation_vector
+from robogym_ray.robots.ur.torch_kinematics import URChain, command_in_base_link, rotation_vector
 
 SCALE = 0.0625
 """Isaac Lab's ``RelativeJointPositionAction`` scale (rad per unit action)."""
@@ -54,15 +54,13 @@ class DeployReachExpert(torch.nn.Module):
         self.wxyz = quat_order == "wxyz"
         self.scale, self.damping, self.gain = SCALE, DAMPING, GAIN  # TorchScript reads no globals
         self.chain = URChain(model)
-        # UR's base frame is base_link turned pi about z: x and y change sign.
-        self.register_buffer("flip", torch.tensor([-1.0, -1.0, 1.0], dtype=torch.float64))
 
     def forward(self, obs: torch.Tensor) -> torch.Tensor:
         x = obs.to(torch.float64)
-        q, goal_p, quat = x[:, :6], x[:, 12:15] * self.flip, x[:, 15:19]
+        q, quat = x[:, :6], x[:, 15:19]
         if self.wxyz:
             quat = torch.cat([quat[:, 1:], quat[:, :1]], dim=1)
-        goal_r = self.flip.unsqueeze(1) * quat_matrix(quat)  # Rz(pi) @ R
+        goal_p, goal_r = command_in_base_link(x[:, 12:15], quat)
         pos, rot, jac = self.kinematics(q)
         err_r = rotation_vector(goal_r @ rot.transpose(1, 2))
         err = torch.cat([(goal_p - pos), err_r], dim=1).unsqueeze(2)

@@ -6,7 +6,9 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-from robogym_ray.robots.ur.torch_kinematics import URChain, quat_matrix
+from robogym_ray.envs.ur_deploy_expert import SCALE
+from robogym_ray.envs.ur_deploy_reach import KEYPOINT_SCALE
+from robogym_ray.robots.ur.torch_kinematics import URChain, command_in_base_link
 
 
 class DeployReachPose(nn.Module):
@@ -25,27 +27,22 @@ class DeployReachPose(nn.Module):
     """
 
     OBS_DIM, ACT_DIM = 19, 6
-    SCALE, KEYPOINT_SCALE = 0.0625, 0.45
     dim = 2 * (3 + 9 + 1)
 
     def __init__(self) -> None:
         super().__init__()
         self.chain = URChain("ur10e", torch.float32)
-        # UR's base frame is base_link turned pi about z: x and y change sign.
-        flip = torch.tensor([-1.0, -1.0, 1.0])
-        self.register_buffer("flip", flip, persistent=False)
 
     def forward(self, obs: torch.Tensor, action: torch.Tensor) -> torch.Tensor:
         with torch.autocast(obs.device.type, enabled=False):  # kinematics in float32
             x, a = obs.float(), action.float().clamp(-1.0, 1.0)
             q = x[:, :6]
-            goal_p = x[:, 12:15] * self.flip
-            goal_r = self.flip.unsqueeze(1) * quat_matrix(x[:, 15:19])
+            goal_p, goal_r = command_in_base_link(x[:, 12:15], x[:, 15:19])
             parts = []
-            for joints in (q, q + self.SCALE * a):
-                pos, rot, _ = self.chain(joints)
+            for joints in (q, q + SCALE * a):
+                pos, rot = self.chain.pose(joints)
                 e_p = goal_p - pos
-                e_axes = self.KEYPOINT_SCALE * (goal_r - rot)  # column i: the +i keypoint's gap
+                e_axes = KEYPOINT_SCALE * (goal_r - rot)  # column i: the +i keypoint's gap
                 gaps = torch.cat(
                     [e_p.unsqueeze(2), e_p.unsqueeze(2) + e_axes, e_p.unsqueeze(2) - e_axes], 2
                 )

@@ -48,19 +48,38 @@ class URChain(torch.nn.Module):
         self.register_buffer("fixed", torch.from_numpy(fixed).to(dtype), persistent=False)
 
     def forward(self, q: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        batch = q.shape[0]
-        m = self.root.expand(batch, 4, 4)
-        axes, origins = [], []
-        for i in range(6):
-            m = m @ self.fixed[i]
-            axes.append(m[:, :3, 2])
-            origins.append(m[:, :3, 3])
-            m = m @ rot_z(q[:, i])
+        m, axes, origins = self._walk(q)
         pos = m[:, :3, 3]
         z = torch.stack(axes, dim=2)
         lever = pos.unsqueeze(2) - torch.stack(origins, dim=2)
         jac = torch.cat([torch.linalg.cross(z, lever, dim=1), z], dim=1)
         return pos, m[:, :3, :3], jac
+
+    def pose(self, q: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """The position and rotation alone: :meth:`forward` without the Jacobian."""
+        m, _, _ = self._walk(q)
+        return m[:, :3, 3], m[:, :3, :3]
+
+    def _walk(self, q: torch.Tensor) -> tuple[torch.Tensor, list[torch.Tensor], list[torch.Tensor]]:
+        """The chain's last transform, and each joint's axis and origin on the way."""
+        m = self.root.expand(q.shape[0], 4, 4)
+        axes: list[torch.Tensor] = []
+        origins: list[torch.Tensor] = []
+        for i in range(6):
+            m = m @ self.fixed[i]
+            axes.append(m[:, :3, 2])
+            origins.append(m[:, :3, 3])
+            m = m @ rot_z(q[:, i])
+        return m, axes, origins
+
+
+def command_in_base_link(
+    position: torch.Tensor, quat_xyzw: torch.Tensor
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """A pose command given in UR's ``base`` frame (``base_link`` turned pi about z: x and y
+    change sign), as position ``[B, 3]`` and rotation ``[B, 3, 3]`` in ``base_link``."""
+    flip = torch.tensor([-1.0, -1.0, 1.0], dtype=position.dtype, device=position.device)
+    return position * flip, flip.unsqueeze(1) * quat_matrix(quat_xyzw)  # Rz(pi) @ R
 
 
 def rot_z(angle: torch.Tensor) -> torch.Tensor:
