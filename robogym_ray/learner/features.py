@@ -22,6 +22,7 @@ from robogym_ray.text import did_you_mean, quote
 
 CRITIC_FEATURES: dict[str, str] = {
     "ur10e-deploy-pose": "robogym_ray.envs.ur_deploy_features:DeployReachPose",
+    "ur10-isaac-reach-pose": "robogym_ray.envs.ur_isaac_reach_features:IsaacReachPose",
 }
 """``D4PGConfig.critic_features`` names -> ``module:class`` of feature modules (each with
 ``OBS_DIM`` and ``ACT_DIM``, the task's sizes it reads)."""
