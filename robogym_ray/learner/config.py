@@ -39,9 +39,7 @@ class D4PGConfig:
     critic_features: str = ""
     """Inputs the critic computes from each observation and action beside them
     (``learner/features.py``): '' none; 'ur10e-deploy-pose' the deploy reach's pose errors of
-    the wrist where the joints are and where the action sends them; 'ur10-isaac-reach-pose'
-    the UR10 reach's (``IsaacReach*UR10Sim-v0``) of ``tool1`` where the joints are and at the
-    targets the action sets. The policy does not see
+    the wrist where the joints are and where the action sends them. The policy does not see
     them: it stays ``obs -> action``, and so does every file it is exported to."""
     num_atoms: int = 51
     """Number of atoms of the categorical value distribution."""

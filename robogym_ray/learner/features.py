@@ -22,7 +22,6 @@ from robogym_ray.text import did_you_mean, quote
 
 CRITIC_FEATURES: dict[str, str] = {
     "ur10e-deploy-pose": "robogym_ray.envs.ur_deploy_features:DeployReachPose",
-    "ur10-isaac-reach-pose": "robogym_ray.envs.ur_isaac_reach_features:IsaacReachPose",
 }
 """``D4PGConfig.critic_features`` names -> ``module:class`` of feature modules (each with
 ``OBS_DIM`` and ``ACT_DIM``, the task's sizes it reads)."""
@@ -32,16 +31,21 @@ def critic_features(name: str, obs_dim: int, act_dim: int) -> nn.Module | None:
     """The feature module ``name`` names (None for ``""``), checked against the task's sizes."""
     if not name:
         return None
-    if name not in CRITIC_FEATURES:
-        raise ConfigError(
-            f"d4pg.critic_features {quote(name)}: unknown{did_you_mean(name, CRITIC_FEATURES)}; "
-            f"known: {', '.join(CRITIC_FEATURES)} (or '' for none)"
-        )
-    module, cls = CRITIC_FEATURES[name].split(":")
-    kind = getattr(importlib.import_module(module), cls)
+    kind = feature_class(name)
     if (obs_dim, act_dim) != (kind.OBS_DIM, kind.ACT_DIM):
         raise ConfigError(
             f"d4pg.critic_features {quote(name)} reads {kind.OBS_DIM} observations and "
             f"{kind.ACT_DIM} actions; the task has {obs_dim} and {act_dim}"
         )
     return kind()
+
+
+def feature_class(name: str) -> type[nn.Module]:
+    """The class ``name`` names in ``CRITIC_FEATURES`` (a clear error for an unknown name)."""
+    if name not in CRITIC_FEATURES:
+        raise ConfigError(
+            f"d4pg.critic_features {quote(name)}: unknown{did_you_mean(name, CRITIC_FEATURES)}; "
+            f"known: {', '.join(CRITIC_FEATURES)} (or '' for none)"
+        )
+    module, cls = CRITIC_FEATURES[name].split(":")
+    return getattr(importlib.import_module(module), cls)

@@ -12,7 +12,6 @@ import torch
 
 import robogym_ray  # noqa: F401 - registers the ids
 from robogym_ray.envs.ur_deploy_features import DeployReachPose
-from robogym_ray.envs.ur_isaac_reach_features import IsaacReachPose
 from robogym_ray.errors import ConfigError
 from robogym_ray.learner.features import critic_features
 from robogym_ray.learner.learner import D4PGLearner
@@ -114,42 +113,3 @@ def test_unknown_names_and_other_tasks_are_refused_in_one_line() -> None:
         critic_features("ur10e-deploy-poses", 19, 6)
     with pytest.raises(ConfigError, match="reads 19 observations and 6 actions; the task has 25"):
         learner_networks(small_config(critic_features="ur10e-deploy-pose"), 25, 6)
-
-
-REACH = "RoboGymRay/IsaacReachFineTanhUR10Sim-v0"
-
-
-def test_reach_features_are_the_envs_errors_and_the_targets_where_the_arm_comes_to_rest() -> None:
-    """``ur10-isaac-reach-pose``: its distance and angle where the joints are equal the env's
-    ``dist_coord`` and ``dist_rot``; held, an action brings the arm to the pose its half of the
-    features describes."""
-    env = gym.make(REACH)
-    features = IsaacReachPose()
-    low, high = env.action_space.low, env.action_space.high
-    try:
-        obs, _ = env.reset(seed=5)
-        default = obs[:6].copy()  # the arm starts near the default pose: aim close to it
-        env_action = np.clip(default / 0.5 + np.array([0.3, -0.2, 0.25, -0.3, 0.2, 0.4]), low, high)
-        action = (2 * (env_action - low) / (high - low) - 1).astype(np.float32)[None]
-        for _ in range(90):  # within the first 4-s command
-            obs, _, _, _, info = env.step(env_action.astype(np.float32))
-        out = features(torch.from_numpy(obs[None]), torch.from_numpy(action))[0].detach().numpy()
-        assert out[12] == pytest.approx(info["dist_coord"], abs=1e-4)
-        assert out[13] == pytest.approx(info["dist_rot"], abs=1e-4)
-        np.testing.assert_allclose(out[:14], out[14:], atol=2e-3)  # at rest where it was sent
-    finally:
-        env.close()
-
-
-def test_the_reach_features_carry_the_actions_gradient() -> None:
-    rng = np.random.default_rng(1)
-    obs = rng.normal(scale=0.3, size=(8, 25)).astype(np.float32)
-    obs[:, 15:19] /= np.linalg.norm(obs[:, 15:19], axis=1, keepdims=True)
-    action = torch.tensor(rng.uniform(-0.5, 0.5, (8, 6)), dtype=torch.float32, requires_grad=True)
-    features = IsaacReachPose()
-    out = features(torch.from_numpy(obs), action)
-    (grad,) = torch.autograd.grad(out[:, 26:28].sum(), action)  # the targets' distance, angle
-    assert torch.isfinite(grad).all() and float(grad[:, :5].abs().min()) > 0
-    still = features(torch.from_numpy(obs), torch.zeros(8, 6))
-    assert torch.isfinite(still).all()
-    torch.testing.assert_close(still[:, :14], out[:, :14])  # where the joints are: no action

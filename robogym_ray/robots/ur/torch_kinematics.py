@@ -1,8 +1,7 @@
 """Our UR arms' forward kinematics in torch: batched, differentiable and TorchScript-able.
 
 Used where a network needs the arm's kinematics: the deploy reach's scripted expert
-(``envs/ur_deploy_expert.py``) and the critic's pose features (``learner/features.py``) of the
-deploy reach and of Isaac Lab's UR10 reach. The
+(``envs/ur_deploy_expert.py``) and the critic's pose features (``learner/features.py``). The
 chain's constant transforms are read off ``geometry``'s forward kinematics at the zero pose, so
 the kinematics are written once. It imports torch, so no env module imports it (a Sim env stays
 without torch).
@@ -33,31 +32,20 @@ def chain(model: str = "ur10e") -> tuple[np.ndarray, np.ndarray]:
     return poses[0], np.stack(fixed)
 
 
-def tool(model: str, frame: str) -> np.ndarray:
-    """``frame``'s fixed transform from ``wrist_3_link`` (one of ``geometry.EE_FRAMES``)."""
-    frames = forward_kinematics(model, np.zeros(6))
-    return np.linalg.inv(_matrix(*frames["wrist_3_link"])) @ _matrix(*frames[frame])
-
-
 class URChain(torch.nn.Module):
-    """Joints ``[B, 6]`` (env order) -> ``frame``'s position ``[B, 3]`` and rotation ``[B, 3, 3]``
-    in ``base_link``, and the geometric Jacobian ``[B, 6, 6]`` (linear rows, then angular), in
-    ``dtype``. ``frame`` is ``wrist_3_link`` (the deploy reach's end effector) or another of
-    ``geometry.EE_FRAMES`` (``tool1``: Isaac Lab's UR10 reach).
+    """Joints ``[B, 6]`` (env order) -> ``wrist_3_link``'s position ``[B, 3]`` and rotation
+    ``[B, 3, 3]`` in ``base_link``, and the geometric Jacobian ``[B, 6, 6]`` (linear rows, then
+    angular), in ``dtype``.
 
     The transforms are non-persistent buffers: a module holding a chain saves no kinematics in
     its state dict, and loads one saved without it.
     """
 
-    def __init__(
-        self, model: str = "ur10e", dtype: torch.dtype = torch.float64, frame: str = "wrist_3_link"
-    ) -> None:
+    def __init__(self, model: str = "ur10e", dtype: torch.dtype = torch.float64) -> None:
         super().__init__()
         root, fixed = chain(model)
         self.register_buffer("root", torch.from_numpy(root).to(dtype), persistent=False)
         self.register_buffer("fixed", torch.from_numpy(fixed).to(dtype), persistent=False)
-        tail = tool(model, frame)
-        self.register_buffer("tail", torch.from_numpy(tail).to(dtype), persistent=False)
 
     def forward(self, q: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         m, axes, origins = self._walk(q)
@@ -82,7 +70,7 @@ class URChain(torch.nn.Module):
             axes.append(m[:, :3, 2])
             origins.append(m[:, :3, 3])
             m = m @ rot_z(q[:, i])
-        return m @ self.tail, axes, origins
+        return m, axes, origins
 
 
 def command_in_base_link(
@@ -116,23 +104,10 @@ def quat_matrix(q: torch.Tensor) -> torch.Tensor:
 
 def rotation_vector(r: torch.Tensor) -> torch.Tensor:
     """Axis x angle of rotation matrices (the log map), by atan2 so that it holds up to pi."""
-    skew = _skew(r)
+    skew = torch.stack(
+        [r[:, 2, 1] - r[:, 1, 2], r[:, 0, 2] - r[:, 2, 0], r[:, 1, 0] - r[:, 0, 1]], dim=1
+    )
     sin = 0.5 * torch.linalg.vector_norm(skew, dim=1, keepdim=True)
     cos = 0.5 * (r[:, 0, 0] + r[:, 1, 1] + r[:, 2, 2] - 1.0).unsqueeze(1)
     angle = torch.atan2(sin, cos)
     return skew * (angle / (2.0 * sin).clamp(min=1e-9))
-
-
-def rotation_angle(r: torch.Tensor) -> torch.Tensor:
-    """The angle ``[B, 1]`` of rotation matrices (0 to pi), by atan2; the sine's norm has a floor
-    so that its gradient stays finite at no rotation."""
-    sin = 0.5 * torch.sqrt(_skew(r).square().sum(1, keepdim=True) + 1e-12)
-    cos = 0.5 * (r[:, 0, 0] + r[:, 1, 1] + r[:, 2, 2] - 1.0).unsqueeze(1)
-    return torch.atan2(sin, cos)
-
-
-def _skew(r: torch.Tensor) -> torch.Tensor:
-    """``[B, 3]``: twice the sine times the axis of rotation matrices (their skew part)."""
-    return torch.stack(
-        [r[:, 2, 1] - r[:, 1, 2], r[:, 0, 2] - r[:, 2, 0], r[:, 1, 0] - r[:, 0, 1]], dim=1
-    )
