@@ -56,6 +56,7 @@ def load_config(name: str):
         "isaac-deploy-reach-ur10e-average",
         "isaac-deploy-reach-ur10e-average-quarter-ratio",
         "isaac-deploy-reach-ur10e-average-quarter-ratio-pose-critic",
+        "isaac-deploy-reach-ur10e-average-eighth-ratio-pose-critic",
     ],
 )
 def test_configs_load_and_flags_override_them(name: str) -> None:
