@@ -4,7 +4,7 @@
 
 For each feature module of ``learner/features.py``: two learners of its task's sizes and the
 arm presets' networks ((400, 300), LayerNorm, 51 atoms, batch 256, prioritized replay of 20,000
-transitions whose commands are unit quaternions), one without the features and one with
+random transitions whose commands are unit quaternions), one without the features and one with
 them, built in this process and timed in turn, ``--rounds`` windows of ``--seconds`` each, after
 a warm-up. Each window counts whole learner steps (sampling, both updates, priorities, target
 updates). One JSON line per pair; the ratio is taken per pair, so that the machine's drift hits
@@ -20,6 +20,7 @@ import time
 
 import numpy as np
 import torch
+from learner_throughput import random_batch  # benchmarks/ is this script's folder
 
 from robogym_ray.learner.config import D4PGConfig
 from robogym_ray.learner.features import CRITIC_FEATURES, critic_features, feature_class
@@ -35,16 +36,12 @@ def sizes(name: str) -> tuple[int, int]:
     return kind.OBS_DIM, kind.ACT_DIM
 
 
-def transitions(n: int, obs_dim: int, act_dim: int, seed: int) -> dict:
-    rng = np.random.default_rng(seed)
-    obs = rng.normal(scale=0.5, size=(2, n, obs_dim)).astype(np.float32)
-    obs[:, :, QUAT] /= np.linalg.norm(obs[:, :, QUAT], axis=2, keepdims=True)
-    return {
-        "obs": obs[0], "next_obs": obs[1],
-        "action": rng.uniform(-1, 1, (n, act_dim)).astype(np.float32),
-        "reward": rng.uniform(-0.1, 0.0, n).astype(np.float32),
-        "discount": np.full(n, 0.99**5, np.float32),
-    }  # fmt: skip
+def transitions(n: int, obs_dim: int, act_dim: int, seed: int) -> dict[str, np.ndarray]:
+    """``random_batch``'s transitions with unit quaternions where the commands' are."""
+    batch = random_batch(n, obs_dim, act_dim, seed)
+    for key in ("obs", "next_obs"):
+        batch[key][:, QUAT] /= np.linalg.norm(batch[key][:, QUAT], axis=1, keepdims=True)
+    return batch
 
 
 def learner(name: str, features: str) -> D4PGLearner:
