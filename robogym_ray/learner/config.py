@@ -18,6 +18,7 @@ averaging every step (the Pendulum-v1 preset in ``training.local`` uses 0.005, a
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from robogym_ray.config import check_ranges
@@ -80,6 +81,13 @@ class D4PGConfig:
     learner steps, not wall time, so a schedule replays identically and survives a restore."""
     lr_final_scale: float = 1.0
     """Fraction of the base learning rates reached at the end of the decay, in (0, 1]."""
+    policy_smoothness: float = 0.0
+    """If > 0, the policy's loss adds this weight times its squared change across each replayed
+    n-step window, ``|pi(s_t) - pi(s_t+n)|^2`` summed over the action's [-1, 1] scale (CAPS's
+    temporal term, Mysore et al. 2021, over the window the replay holds). A policy of absolute
+    targets that tracks a command outputs about the same target from step to step and pays
+    little; one that alternates its targets at rest pays for each swing. With an even
+    ``n_step`` a two-step alternation goes unseen: use an odd one. 0 (the default): DPG alone."""
     samples_per_insert: float = 32.0
     """Replayed samples per inserted transition; batch_size / this = learner steps per insert."""
 
@@ -170,6 +178,12 @@ class D4PGConfig:
             (self.lr_decay_start >= 0, "lr_decay_start", self.lr_decay_start, ">= 0"),
             (self.lr_decay_steps >= 0, "lr_decay_steps", self.lr_decay_steps, ">= 0"),
             (0.0 < self.lr_final_scale <= 1.0, "lr_final_scale", self.lr_final_scale, "in (0, 1]"),
+            (
+                0.0 <= self.policy_smoothness < math.inf,
+                "policy_smoothness",
+                self.policy_smoothness,
+                ">= 0 and finite",
+            ),
             (self.samples_per_insert > 0, "samples_per_insert", self.samples_per_insert, "> 0"),
             (
                 self.replay_capacity >= self.batch_size,

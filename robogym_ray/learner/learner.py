@@ -225,7 +225,6 @@ class D4PGLearner:
         means = {name: float(x) for name, x in zip(self.STATS, mean, strict=True)}
         return {
             **means,
-            "mean_q": -means["policy_loss"],
             "beta": beta_sum / steps,
             "lr_scale": lr_sum / steps,
             "steps": float(self.num_steps),
@@ -241,13 +240,38 @@ class D4PGLearner:
         per_sample = categorical_cross_entropy(logits, target)
         return (w * per_sample).mean(), per_sample.detach()
 
-    def _policy_loss(self, obs: torch.Tensor) -> torch.Tensor:
-        """DPG: minus the critic's mean of the policy's action."""
-        with self._autocast():
-            logits = self.critic(obs, self.policy(obs)).float()
-        return -expected_value(logits, self.support).mean()
+    def _policy_loss(
+        self, b: dict[str, torch.Tensor]
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """DPG: minus the critic's mean of the policy's action; with ``policy_smoothness``,
+        plus that weight times the policy's squared change across each n-step window.
 
-    STATS = ("critic_loss", "policy_loss", "critic_grad_norm", "policy_grad_norm", "mean_priority")
+        Returns:
+            The loss, the critic's mean of the policy's action, and the mean squared change
+            (0 when the weight is 0: the second policy pass is then skipped).
+        """
+        with self._autocast():
+            action = self.policy(b["obs"])
+            logits = self.critic(b["obs"], action).float()
+            mean_q = expected_value(logits, self.support).mean()
+            change = torch.zeros((), device=mean_q.device)
+            if self.config.policy_smoothness > 0:
+                # A window that an episode's end cut short (discount 0) has no later state of
+                # the same episode to compare with.
+                alive = (b["discount"] > 0).float()
+                moved = (action - self.policy(b["next_obs"])).float().square().sum(-1)
+                change = (alive * moved).sum() / alive.sum().clamp(min=1.0)
+        return -mean_q + self.config.policy_smoothness * change, mean_q, change
+
+    STATS = (
+        "critic_loss",
+        "policy_loss",
+        "critic_grad_norm",
+        "policy_grad_norm",
+        "mean_priority",
+        "mean_q",
+        "policy_change",
+    )
     """The per-step statistics :meth:`gradient_step` stacks, in its order."""
 
     def gradient_step(
@@ -269,14 +293,15 @@ class D4PGLearner:
 
         # Only policy gradients are requested, so autograd skips the critic's weight gradients
         # (about a third of the backward work).
-        policy_loss = self._policy_loss_fn(b["obs"])
+        policy_loss, mean_q, change = self._policy_loss_fn(b)
         params = list(self.policy.parameters())
         for p, g in zip(params, torch.autograd.grad(policy_loss, params), strict=True):
             p.grad = g
         policy_norm = self._clip(self.policy)
         self.policy_opt.step()
         losses = (critic_value, policy_loss.detach(), critic_norm, policy_norm)
-        stats = torch.stack([*(x.float() for x in losses), per_sample.mean()])
+        rest = (per_sample.mean(), mean_q.detach(), change.detach())
+        stats = torch.stack([x.float() for x in (*losses, *rest)])
         return stats, per_sample
 
     def _autocast(self) -> contextlib.AbstractContextManager:

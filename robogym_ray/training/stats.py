@@ -178,6 +178,7 @@ def scalars(
         "loss/critic": s.learner.get("critic_loss", 0.0),
         "loss/policy": s.learner.get("policy_loss", 0.0),
         "learner/mean_q": s.learner.get("mean_q", 0.0),
+        "learner/policy_change": s.learner.get("policy_change", 0.0),
         "learner/lr_scale": s.learner.get("lr_scale", 1.0),
         "explore/noise_scale": noise_scale,
         "explore/revisit_fraction": s.revisits / max(1, s.episodes),
