@@ -1,8 +1,9 @@
-"""The isaac-reach-ur10-her-average-long-replay-box-fine-tanh experiment end to end, CI-sized:
-a training from its config file (the isaac-reach-ur10-fine-tanh preset and support, hindsight
-relabelling, policy averaging, the action box; small networks and replay, a short warm-up), then
-``evaluate`` of the averaged policy on robo-gym 2.1.0's IsaacReachUR10Sim-v0, the env its
-policies are scored on; and a training of it whose evaluator plays that env (``eval_env_id``)."""
+"""The isaac-reach-ur10-her-average-long-replay-box-fine-tanh-smooth experiment end to end,
+CI-sized: a training from its config file (the isaac-reach-ur10-fine-tanh preset and support,
+hindsight relabelling, policy averaging, the action box, the policy's change priced; small
+networks and replay, a short warm-up), then ``evaluate`` of the averaged policy on robo-gym
+2.1.0's IsaacReachUR10Sim-v0, the env its policies are scored on; and a training of it whose
+evaluator plays that env (``eval_env_id``)."""
 
 from __future__ import annotations
 
@@ -21,7 +22,7 @@ pytestmark = [pytest.mark.ray, pytest.mark.slow, pytest.mark.usefixtures("ray_cl
 
 CONFIG = (
     Path(__file__).resolve().parents[2]
-    / "experiments/configs/isaac-reach-ur10-her-average-long-replay-box-fine-tanh.json"
+    / "experiments/configs/isaac-reach-ur10-her-average-long-replay-box-fine-tanh-smooth.json"
 )
 ORIGINAL = "RoboGymRay/IsaacReachUR10Sim-v0"
 # Small networks, few learner steps: the path is under test, not the learning.
@@ -48,6 +49,8 @@ def test_a_short_training_runs_and_evaluate_scores_it_on_isaac_reach_ur10(
     config = json.loads((tmp_path / "smoke" / "config.json").read_text())
     assert (config["d4pg"]["v_min"], config["d4pg"]["v_max"]) == (-4.0, 2.0)
     assert config["d4pg"]["policy_average_tau"] > 0 and config["train"]["relabel_goals"] == 4
+    # The smoothness term ran: its measure of the replayed windows reached the summary.
+    assert config["d4pg"]["policy_smoothness"] == 0.05 and summary["learner/policy_change"] > 0
     box = np.array([config["d4pg"]["action_box_low"], config["d4pg"]["action_box_high"]])
     policy, _ = load_checkpoint_policy(tmp_path / "smoke" / "checkpoints" / "learner.pt")
     np.testing.assert_allclose(policy.box_center.numpy(), box.mean(axis=0), atol=1e-6)

@@ -52,6 +52,7 @@ def load_config(name: str):
         "isaac-reach-ur10-her",
         "isaac-reach-ur10-her-average",
         "isaac-reach-ur10-her-average-long-replay",
+        "isaac-reach-ur10-her-average-long-replay-box-fine-tanh-smooth",
         "isaac-deploy-reach-ur10e-fine",
         "isaac-deploy-reach-ur10e-average",
         "isaac-deploy-reach-ur10e-average-quarter-ratio",
@@ -77,6 +78,7 @@ def test_configs_load_and_flags_override_them(name: str) -> None:
     assert (d4pg.get("replay_capacity") == 3_000_000) == name.endswith("-long-replay")
     assert ("Sectors" in train.task) == ("-sectors" in name)
     assert (d4pg.get("critic_features", "") != "") == name.endswith("-pose-critic")
+    assert (d4pg.get("policy_smoothness", 0.0) > 0) == name.endswith("-smooth")
     from robogym_ray.training.presets import d4pg_for, resolve_task
 
     d4pg_for(resolve_task(train.task), d4pg)  # every key is a D4PGConfig field
@@ -133,6 +135,13 @@ def configs_on_supported_presets() -> list[str]:
     names = sorted(p.stem for p in (EXPERIMENTS / "configs").glob("*.json"))
     tasks = {name: load_config(name)[0].task for name in names}
     return [n for n in names if "v_max" in getattr(TASKS.get(tasks[n]), "d4pg", {})]
+
+
+def test_the_smooth_config_is_the_fine_tanh_config_with_the_policys_change_priced() -> None:
+    fine = load_config("isaac-reach-ur10-her-average-long-replay-box-fine-tanh")
+    smooth = load_config("isaac-reach-ur10-her-average-long-replay-box-fine-tanh-smooth")
+    assert smooth[1] == {**fine[1], "policy_smoothness": 0.05}
+    assert smooth[0].task == fine[0].task and smooth[0].relabel_goals == fine[0].relabel_goals
 
 
 @pytest.mark.parametrize("config", configs_on_supported_presets())
